@@ -1,0 +1,29 @@
+"""Gaussian process models of Sec. VII-A: regression for the return R and classification for S.
+
+:class:`GPRegression` is the return model g_R (Eq. 11-12), :class:`GPClassifier` the success model
+g_S (Eq. 13, Laplace approximation with a constant negative prior mean), both with the squared
+exponential kernel of Eq. 16. Models know nothing of acquisitions.
+"""
+
+from corl.gp.classification import (
+    DOOR_CLASSIFIER,
+    SYNTHETIC_CLASSIFIER,
+    ClassifierPreset,
+    GPClassifier,
+    expected_sigmoid,
+)
+from corl.gp.kernels import SquaredExponential
+from corl.gp.regression import DOOR_REGRESSION, SYNTHETIC_REGRESSION, GPRegression, RegressionPreset
+
+__all__ = [
+    "SquaredExponential",
+    "GPRegression",
+    "GPClassifier",
+    "RegressionPreset",
+    "ClassifierPreset",
+    "SYNTHETIC_REGRESSION",
+    "DOOR_REGRESSION",
+    "SYNTHETIC_CLASSIFIER",
+    "DOOR_CLASSIFIER",
+    "expected_sigmoid",
+]

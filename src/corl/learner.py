@@ -1,0 +1,305 @@
+"""CORL, Algorithm 1, as an ask/tell learner.
+
+Glossary
+--------
+w*, theta* : best policy so far (Alg. 1 "Initialize (w*, theta*) = (w0, theta0)"), (n,) and (m,)
+R*         : return of the best policy's latest successful rollout
+D          : data of the black-box step, pairs (theta, Outcome)
+eps_max    : trust-region radius of one optimization step (Eq. 8)
+eps_w      : step 1 stops when ``||w(i+1) - w(i)|| < eps_w``
+eps_theta  : step 2 stops when ``||theta(d+1) - theta(d)|| < eps_theta`` (if ``theta_step_stop``)
+
+The algorithm is written once, as a generator that yields :class:`Proposal` objects and receives
+:class:`Outcome` objects; :meth:`CORL.ask` and :meth:`CORL.tell` drive it. A robot's loop is
+
+    learner = CORL(task, pibu_factory())
+    while not learner.done:
+        proposal = learner.ask()
+        outcome = execute_on_robot(proposal.w)
+        learner.tell(outcome)
+
+Decisions beyond the paper (see README):
+* The demonstration is rolled out once, as trial 0: D needs ``R(theta0)``, and a failing
+  demonstration is reported at once (:class:`DemonstrationFailedError`).
+* A step-1 iterate that moved less than ``eps_w`` is not rolled out (it is the same policy).
+* A failed rollout in step 1 ends that step; ``w*`` stays at the last success.
+* With ``reuse_data`` (default), D keeps the step-2 data of earlier rounds: R and S depend on
+  theta only (Sec. IV), so the data stays valid and a converged black-box step stops at once.
+* Eq. 18 may have no minimiser (the infimum can sit where h is singular); any feasible result
+  realises theta and is executed, and an infeasible one is retried by continuation from theta*
+  (see ``_realise``). A theta whose projection stays infeasible is told to the black-box method as a failure
+  without a rollout (``info["unrealisable"] = True``) and counted in ``unrealisable``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Generator, Iterator
+
+import numpy as np
+
+from corl.errors import DemonstrationFailedError, InputError, RolloutError, StateError
+from corl.numerics import as_vector
+from corl.optimizers.base import BlackBoxOptimizer
+from corl.problem import Bounds, Outcome, Proposal, Task, check_theta
+from corl.trajectory.solver import FunctionProblem, SolverConfig, project, solve
+
+__all__ = ["CORLConfig", "CORL", "Best", "OptimizerFactory", "cost_of"]
+
+OptimizerFactory = Callable[[Bounds, np.ndarray, np.random.Generator], BlackBoxOptimizer]
+
+
+@dataclass(frozen=True)
+class CORLConfig:
+    """Settings of Algorithm 1 (paper defaults for the synthetic benchmark)."""
+
+    eps_max: float = 1e-3
+    eps_w: float = 1e-5
+    eps_theta: float = 3e-3
+    theta_step_stop: bool = False
+    max_rounds: int = 10
+    max_optimization_steps: int = 5000
+    max_rl_trials: int = 100
+    rollout_every_step: bool = True
+    reuse_data: bool = True
+    solver: SolverConfig = field(default_factory=SolverConfig)
+
+    def __post_init__(self) -> None:
+        if min(self.eps_max, self.eps_w, self.eps_theta) <= 0:
+            raise InputError("eps_max, eps_w and eps_theta must be positive")
+        if min(self.max_rounds, self.max_optimization_steps, self.max_rl_trials) < 1:
+            raise InputError("max_rounds, max_optimization_steps and max_rl_trials must be >= 1")
+
+
+@dataclass(frozen=True)
+class Best:
+    """The best policy so far: ``w`` (n,), ``theta`` (m,), its return and analytic cost J."""
+
+    w: np.ndarray
+    theta: np.ndarray
+    return_: float
+    J: float
+
+
+def cost_of(task: Task, w: np.ndarray) -> float:
+    """Analytic cost ``J(w) = r(w) @ r(w)`` (Eq. 7)."""
+    r, _ = task.cost_residuals(w)
+    return float(np.dot(r, r))
+
+
+class CORL:
+    """Algorithm 1: alternate trust-region motion optimization and safe black-box RL over theta.
+
+    Parameters
+    ----------
+    task : a :class:`corl.problem.Task`.
+    optimizer_factory : ``(bounds, theta_start, rng) -> BlackBoxOptimizer`` builds the black-box
+        method of step 2 (PIBU, UCB, SAL, CMA-ES, PoWER) afresh in every round.
+    config : :class:`CORLConfig`.
+    seed : seeds the black-box methods; same seed and outcomes give the same proposals.
+    """
+
+    def __init__(self, task: Task, optimizer_factory: OptimizerFactory, config: CORLConfig = CORLConfig(),
+                 *, seed: int = 0) -> None:
+        self.task = task
+        self.optimizer_factory = optimizer_factory
+        self.config = config
+        self.seed = int(seed)
+        self.history: list[tuple[Proposal, Outcome]] = []
+        self.J_history: list[tuple[int, float]] = []  # (trial index, J(w)) of every rolled-out w
+        self.unrealisable = 0
+        self.rounds = 0
+        self.optimizers: list[BlackBoxOptimizer] = []
+        self._best: Best | None = None
+        self._pending: Proposal | None = None
+        self._finished = False
+        self._gen: Generator[Proposal, Outcome, None] = self._algorithm()
+
+    # -- ask / tell ----------------------------------------------------------------------------
+    def ask(self) -> Proposal:
+        """The next trial to execute. A trial asked but not told is returned again."""
+        if self._pending is not None:
+            return self._pending
+        if self._finished:
+            raise StateError("CORL has finished; read .best")
+        try:
+            self._pending = next(self._gen)
+        except StopIteration:
+            self._finished = True
+            raise StateError("CORL has finished; read .best") from None
+        return self._pending
+
+    def tell(self, outcome: Outcome) -> None:
+        """Record the outcome of the pending trial."""
+        if self._pending is None:
+            raise StateError("tell() without a pending trial: call ask() first, execute it, then tell its outcome")
+        if not isinstance(outcome, Outcome):
+            raise InputError(f"tell() needs a corl.Outcome, got {type(outcome).__name__}")
+        proposal = self._pending
+        self._pending = None
+        self.history.append((proposal, outcome))
+        self.J_history.append((proposal.index, cost_of(self.task, proposal.w)))
+        try:
+            self._pending = self._gen.send(outcome)
+        except StopIteration:
+            self._finished = True
+        except Exception:
+            self._finished = True  # the trial is recorded in history; the run cannot go on
+            raise
+
+    @property
+    def done(self) -> bool:
+        """True once Algorithm 1 has stopped ("until no change in (w*, theta*)")."""
+        return self._finished
+
+    @property
+    def best(self) -> Best | None:
+        """The best successful policy ``(w*, theta*)`` with its return and J, or None."""
+        return self._best
+
+    def run(self, task: Task | None = None, *, max_trials: int | None = None,
+            callback: Callable[[Proposal, Outcome], None] | None = None) -> Best | None:
+        """Convenience loop: ask, ``task.rollout(w)``, tell, until done or ``max_trials``."""
+        task = task or self.task
+        count = 0
+        while not self.done and (max_trials is None or count < max_trials):
+            proposal = self.ask()
+            try:
+                outcome = task.rollout(proposal.w)
+            except Exception as exc:
+                raise RolloutError(
+                    f"the rollout of trial {proposal.index} ({proposal.step}) raised {type(exc).__name__}: {exc}. "
+                    "The trial stays pending: fix the task and call run() again, or tell() its outcome"
+                ) from exc
+            if not isinstance(outcome, Outcome):
+                raise RolloutError(f"task.rollout must return a corl.Outcome, got {type(outcome).__name__}; "
+                                   f"trial {proposal.index} stays pending")
+            self.tell(outcome)
+            count += 1
+            if callback is not None:
+                callback(proposal, outcome)
+        return self.best
+
+    # -- Algorithm 1 ---------------------------------------------------------------------------
+    def _proposal(self, w: np.ndarray, theta: np.ndarray, step: str) -> Proposal:
+        return Proposal(index=len(self.history), w=w, theta=theta, step=step, round=self.rounds)
+
+    def _algorithm(self) -> Iterator[Proposal]:
+        task, cfg = self.task, self.config
+        bounds = task.theta_bounds
+        demo = task.demonstration()
+        w0 = as_vector(demo.w, name="demonstration w")
+        theta0 = check_theta(demo.theta, bounds, task=task.name)
+        outcome = yield self._proposal(w0, theta0, "demonstration")
+        if not outcome.success:
+            raise DemonstrationFailedError(
+                f"the demonstration of task '{task.name}' failed (S(theta0) = 0, info {dict(outcome.info)}); "
+                "Algorithm 1 needs a successful demonstration: re-record it or check the success criterion"
+            )
+        # Alg. 1: Initialize (w*, theta*) = (w0, theta0)
+        w_star, theta_star, r_star = w0, theta0, float(outcome.return_)
+        self._best = Best(w_star, theta_star, r_star, cost_of(task, w_star))
+        data: list[tuple[np.ndarray, Outcome]] = [(theta0, outcome)]
+        for self.rounds in range(cfg.max_rounds):
+            w_before, theta_before = w_star, theta_star
+            # -- 1) Optimization (Sec. VI): trust-region steps on J with theta* fixed (Eq. 8) ----
+            w_star, r_star = yield from self._optimization(w_star, theta_star, r_star)
+            # -- 2) Black-box reinforcement learning over theta (Sec. VII) -------------------------
+            if not cfg.reuse_data:
+                data = []
+            data = [d for d in data if not np.array_equal(d[0], theta_star)] + [(theta_star, Outcome(True, r_star))]
+            w_star, theta_star, r_star, data = yield from self._reinforcement(w_star, theta_star, r_star, data)
+            # Alg. 1: until no change in policy parameter (w*, theta*)
+            if np.linalg.norm(w_star - w_before) < cfg.eps_w and np.array_equal(theta_star, theta_before):
+                break
+
+    def _constraint(self, theta: np.ndarray):
+        task = self.task
+        return lambda w: task.projection(w, theta)
+
+    def _optimization(self, w_star, theta_star, r_star):
+        task, cfg = self.task, self.config
+        problem = FunctionProblem(task.cost_residuals, self._constraint(theta_star))
+        w_i = w_star
+        for _ in range(cfg.max_optimization_steps):
+            # Eq. 8: w(i+1) = argmin J(w) s.t. h(w, theta*) = 0, ||w - w(i)|| < eps_max
+            result = solve(problem, w_i, center=w_i, radius=cfg.eps_max, config=cfg.solver)
+            w_next = result.w
+            if np.linalg.norm(w_next - w_i) < cfg.eps_w:  # until ||w(i+1) - w(i)|| < eps_w
+                break
+            w_i = w_next
+            if cfg.rollout_every_step:
+                outcome = yield self._proposal(w_i, theta_star, "optimization")
+                if not outcome.success:  # do not walk further into failure
+                    return w_star, r_star
+                w_star, r_star = w_i, float(outcome.return_)  # set best w* if rollout successful
+                self._best = Best(w_star, theta_star, r_star, cost_of(task, w_star))
+        if not cfg.rollout_every_step and not np.array_equal(w_i, w_star):
+            outcome = yield self._proposal(w_i, theta_star, "optimization")
+            if outcome.success:
+                w_star, r_star = w_i, float(outcome.return_)
+                self._best = Best(w_star, theta_star, r_star, cost_of(task, w_star))
+        return w_star, r_star
+
+    def _feasible(self, result) -> bool:
+        return bool(result.constraint_error <= 10.0 * self.config.solver.tol_constraint)
+
+    def _realise(self, w_star, theta_star, theta):
+        """Eq. 18: ``w = argmin ||w* - w||^2 s.t. h(w, theta) = 0``.
+
+        A feasible result realises theta even where the closest point is not attained (its
+        infimum can sit where h is singular). When the direct projection stays infeasible, theta
+        is reached by continuation from theta*: a chain of small projections, each anchored at
+        the previous one, which follows the constraint manifold instead of cutting across it.
+        """
+        cfg = self.config
+        result = project(self._constraint(theta), w_star, config=cfg.solver)
+        if self._feasible(result):
+            return result
+        for pieces in (8, 64):
+            w = w_star
+            for k in range(1, pieces + 1):
+                step_theta = theta_star + (theta - theta_star) * (k / pieces)
+                result = project(self._constraint(step_theta), w, config=cfg.solver)
+                if not self._feasible(result):
+                    break
+                w = result.w
+            else:
+                return result
+        return result
+
+    def _reinforcement(self, w_star, theta_star, r_star, data):
+        task, cfg = self.task, self.config
+        rng = np.random.default_rng([self.seed, self.rounds])
+        optimizer = self.optimizer_factory(task.theta_bounds, theta_star.copy(), rng)
+        self.optimizers.append(optimizer)
+        for theta, outcome in data:  # Alg. 1: Initialize D
+            optimizer.tell(theta, outcome)
+        candidates: list[tuple[np.ndarray, np.ndarray, float]] = []
+        previous = theta_star
+        for _ in range(cfg.max_rl_trials):
+            if optimizer.done:
+                break
+            try:
+                theta = optimizer.ask()  # theta(d+1) = argmax_theta a(theta, D)
+            except StateError:
+                break
+            result = self._realise(w_star, theta_star, theta)
+            if not self._feasible(result):
+                self.unrealisable += 1
+                outcome = Outcome(False, None, {"unrealisable": True, "status": result.status})
+            else:
+                outcome = yield self._proposal(result.w, theta, "reinforcement")
+                if outcome.success:
+                    candidates.append((result.w, theta, float(outcome.return_)))
+            optimizer.tell(theta, outcome)  # add datapoint to D
+            data.append((theta, outcome))
+            if cfg.theta_step_stop and np.linalg.norm(theta - previous) < cfg.eps_theta:
+                break  # until ||theta(d+1) - theta(d)|| < eps_theta
+            previous = theta
+        # set best theta* = argmax_{theta in D} R(theta) s.t. S(theta*) = 1
+        for w, theta, r in candidates:
+            if r > r_star:
+                w_star, theta_star, r_star = w, theta, r
+        self._best = Best(w_star, theta_star, r_star, cost_of(task, w_star))
+        return w_star, theta_star, r_star, data

@@ -1,0 +1,136 @@
+"""Bayesian optimization over theta with PIBU (Eq. 17) or UCB, one ask/tell interface.
+
+Each ``ask`` refits the GPs on all data told so far, builds the acquisition, maximises it and
+applies the stopping rule. ``PIBU`` uses the return GP on successes only and the success
+classifier on all points; ``UCB`` ignores safety and models the score (return on success,
+``failure_return`` on failure) with one GP.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from corl.acquisition import PIBU, MaximizerConfig, PIBUConfig, PIBUVariant, maximize, upper_confidence_bound
+from corl.errors import InputError
+from corl.optimizers.base import BlackBoxOptimizer
+from corl.optimizers.gpconfig import ClassifierConfig, RegressionConfig
+from corl.problem import Bounds
+
+__all__ = ["PIBUOptimizer", "UCBOptimizer", "StopRule", "BOConfig"]
+
+
+class StopRule(str, enum.Enum):
+    NEAR_SAMPLED = "near_sampled"  # next point within `stop_distance` of any sampled point
+    SMALL_STEP = "small_step"  # ||theta_{d+1} - theta_d|| < stop_distance (Alg. 1, eps_theta)
+    BUDGET = "budget"  # only max_evals
+
+
+@dataclass(frozen=True)
+class BOConfig:
+    regression: RegressionConfig = field(default_factory=RegressionConfig)
+    classifier: ClassifierConfig = field(default_factory=ClassifierConfig)
+    maximizer: MaximizerConfig = field(default_factory=MaximizerConfig)
+    stop_rule: StopRule = StopRule.NEAR_SAMPLED
+    stop_distance: float = 1e-3
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "stop_rule", StopRule(self.stop_rule))
+        if self.stop_distance < 0:
+            raise InputError(f"stop_distance must be >= 0, got {self.stop_distance}")
+
+
+def _stop(rule: StopRule, x: np.ndarray, X: np.ndarray, distance: float) -> bool:
+    if len(X) == 0 or rule is StopRule.BUDGET:
+        return False
+    if rule is StopRule.NEAR_SAMPLED:
+        return bool(np.min(np.linalg.norm(X - x, axis=1)) < distance)
+    return bool(np.linalg.norm(X[-1] - x) < distance)
+
+
+class _BayesOpt(BlackBoxOptimizer):
+    stop_when_zero = False
+    def __init__(self, bounds: Bounds, config: BOConfig, *, max_evals: int, seed, name: str) -> None:
+        super().__init__(bounds, max_evals=max_evals, name=name)
+        self.config = config
+        self.rng = np.random.default_rng(seed)
+        self.last_acquisition = None  # the acquisition of the latest ask, for plots
+
+    def _propose(self) -> np.ndarray | None:
+        acq = self._acquisition()
+        if acq is None:  # no data yet: start in the middle of the box
+            return (self.bounds.lower + self.bounds.upper) / 2.0
+        self.last_acquisition = acq
+        x, value = maximize(acq, self.bounds, rng=self.rng, config=self.config.maximizer, extra=self.X_)
+        if self.stop_when_zero and not value > 0.0:
+            return None  # nothing to gain anywhere: no likely improvement, no uncertain boundary
+        if _stop(self.config.stop_rule, x, self.X_, self.config.stop_distance):
+            return None
+        return x
+
+    def _acquisition(self):
+        raise NotImplementedError
+
+
+class PIBUOptimizer(_BayesOpt):
+    """Safe Bayesian optimization with the PIBU acquisition (Eq. 17).
+
+    Parameters
+    ----------
+    bounds : search box over theta, (m,) each.
+    config : GP hyperparameters, maximiser and stopping rule.
+    pibu : :class:`PIBUConfig` (variant and thresholds).
+    """
+
+    def __init__(self, bounds: Bounds, config: BOConfig = BOConfig(), pibu: PIBUConfig = PIBUConfig(), *,
+                 max_evals: int = 100, seed=None) -> None:
+        if pibu.variant is PIBUVariant.LITERAL and config.stop_rule is StopRule.NEAR_SAMPLED:
+            config = BOConfig(config.regression, config.classifier, config.maximizer, StopRule.SMALL_STEP,
+                              config.stop_distance)
+        super().__init__(bounds, config, max_evals=max_evals, seed=seed, name="PIBU")
+        self.stop_when_zero = True
+        self.pibu = pibu
+
+    def _acquisition(self):
+        if len(self.X_) == 0:
+            return None
+        classifier = self.config.classifier.build().fit(self.X_, self.success_)
+        ok = self.success_ & np.isfinite(self.returns_)
+        if np.any(ok):
+            regression = self.config.regression.build().fit(self.X_[ok], self.returns_[ok])
+            best = float(np.max(self.returns_[ok]))
+        else:
+            regression, best = None, 0.0
+        return PIBU(regression, classifier, best, self.pibu)
+
+
+class UCBOptimizer(_BayesOpt):
+    """Bayesian optimization with UCB on the score (ignores safety).
+
+    Failures are modelled with the score ``failure_return`` (the paper's single objective gives
+    failures a constant cost of 15).
+    """
+
+    def __init__(self, bounds: Bounds, config: BOConfig = BOConfig(), *, kappa: float = 2.0,
+                 failure_return: float = -15.0, max_evals: int = 100, seed=None) -> None:
+        if kappa < 0:
+            raise InputError(f"kappa must be >= 0, got {kappa}")
+        super().__init__(bounds, config, max_evals=max_evals, seed=seed, name="UCB")
+        self.kappa = kappa
+        self.failure_return = failure_return
+
+    def _acquisition(self):
+        if len(self.X_) == 0:
+            return None
+        y = np.where(self.success_, self.returns_, self.failure_return)
+        y = np.where(np.isfinite(y), y, self.failure_return)
+        gp = self.config.regression.build().fit(self.X_, y)
+        kappa = self.kappa
+
+        def ucb(X):
+            mu, var = gp.predict(X)
+            return upper_confidence_bound(mu, var, kappa)
+
+        return ucb

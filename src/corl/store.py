@@ -1,0 +1,726 @@
+"""The run store: every trial of a run, committed to SQLite before the learning loop moves on.
+
+On a real robot a trial costs minutes, so the store never loses, repeats or corrupts one:
+
+- every write (one proposal, one outcome, one run) is one transaction, ``BEGIN IMMEDIATE ...
+  COMMIT``, in WAL mode with ``synchronous=FULL``: a process killed at any moment leaves the old
+  or the new state, never half a trial, and a call that returned has reached the disk;
+- one writer at a time: a writing :class:`RunStore` holds an exclusive lock on the sibling file
+  ``<store>.lock`` for its whole life. The kernel releases the lock when the process exits or is
+  killed, so a crashed run never blocks its own resume. Readers (``readonly=True``) open at any
+  time and see the last committed state;
+- arrays are stored as raw little-endian float64 bytes beside their shape (never pickled), so they
+  come back bit for bit;
+- :func:`replay` resumes a run exactly: a fresh deterministic learner is asked again for every
+  stored trial, must propose the very same trial, and is told every stored outcome.
+
+A run's trials form a prefix: indices 0, 1, ..., d-1 without gaps, every outcome belongs to a
+stored proposal, and only the last trial may be pending (asked, not yet told).
+
+Schema (format 1; ``PRAGMA user_version`` and ``meta.format_version`` hold the format)
+------------------------------------------------------------------------------------------
+meta(key, value)                                       format_version, created, created_by
+runs(id, created, task, method, seed, config, versions, status)    config, versions: JSON
+trials(run_id, trial_index, step, round, w, w_shape, theta, theta_shape, proposed_at)
+outcomes(run_id, trial_index, success, return_, info, told_at)     return_ NULL when unobserved
+``w``, ``theta``: float64 little-endian bytes; ``*_shape``: JSON list; times: ISO 8601 UTC.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import socket
+import sqlite3
+import tempfile
+from contextlib import contextmanager
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from enum import Enum
+from pathlib import Path
+from typing import Any, Iterator, Mapping, Protocol
+
+import numpy as np
+
+from corl.errors import CorlError, InputError
+from corl.problem import Outcome, Proposal
+from corl.versions import library_versions, version_differences
+
+try:  # POSIX
+    import fcntl
+except ImportError:  # pragma: no cover - Windows
+    fcntl = None
+    import msvcrt
+
+__all__ = ["FORMAT_VERSION", "RunInfo", "RunStatus", "RunStore", "StoreError", "TrialRecord", "replay"]
+
+FORMAT_VERSION = 1  # the newest file format this corl reads and the one it writes
+APPLICATION_ID = int.from_bytes(b"corl", "big")  # marks the SQLite file as a corl store
+_BUSY_TIMEOUT_S = 5.0
+_ARRAY_DTYPE = np.dtype("<f8")
+_RESTORE_HINT = "restore it from a copy or start a new store with a different --store path"
+
+_SCHEMA = (
+    "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL)",
+    """CREATE TABLE runs (
+        id INTEGER PRIMARY KEY AUTOINCREMENT,
+        created TEXT NOT NULL,
+        task TEXT NOT NULL,
+        method TEXT NOT NULL,
+        seed INTEGER,
+        config TEXT NOT NULL,
+        versions TEXT NOT NULL,
+        status TEXT NOT NULL CHECK (status IN ('running', 'finished')))""",
+    """CREATE TABLE trials (
+        run_id INTEGER NOT NULL REFERENCES runs (id),
+        trial_index INTEGER NOT NULL CHECK (trial_index >= 0),
+        step TEXT NOT NULL,
+        round INTEGER NOT NULL,
+        w BLOB NOT NULL,
+        w_shape TEXT NOT NULL,
+        theta BLOB NOT NULL,
+        theta_shape TEXT NOT NULL,
+        proposed_at TEXT NOT NULL,
+        UNIQUE (run_id, trial_index))""",
+    """CREATE TABLE outcomes (
+        run_id INTEGER NOT NULL,
+        trial_index INTEGER NOT NULL,
+        success INTEGER NOT NULL CHECK (success IN (0, 1)),
+        return_ REAL CHECK (success = 0 OR return_ IS NOT NULL),
+        info TEXT NOT NULL,
+        told_at TEXT NOT NULL,
+        UNIQUE (run_id, trial_index),
+        FOREIGN KEY (run_id, trial_index) REFERENCES trials (run_id, trial_index))""",
+)
+
+
+class StoreError(CorlError):
+    """The run store cannot do what was asked (damaged file, second writer, trial told twice, ...)."""
+
+
+class RunStatus(str, Enum):
+    """Where a run stands; a running run can be resumed, a finished one is only read."""
+
+    RUNNING = "running"
+    FINISHED = "finished"
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """One run as listed by ``corl runs``; ``n_trials`` proposals stored, ``n_told`` of them told."""
+
+    id: int
+    created: str
+    task: str
+    method: str
+    seed: int | None
+    config: dict[str, Any]
+    versions: dict[str, str]
+    status: RunStatus
+    n_trials: int
+    n_told: int
+
+
+@dataclass(frozen=True, eq=False)
+class TrialRecord:
+    """A stored trial: its proposal and, once told, its outcome (None while pending)."""
+
+    proposal: Proposal
+    outcome: Outcome | None
+    proposed_at: str
+    told_at: str | None
+
+    @property
+    def index(self) -> int:
+        return self.proposal.index
+
+
+class AskTellLearner(Protocol):
+    """What :func:`replay` needs: the CORL learner's ``ask() -> Proposal`` and ``tell(outcome)``."""
+
+    def ask(self) -> Proposal: ...
+
+    def tell(self, outcome: Outcome) -> None: ...
+
+
+def _now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="microseconds")
+
+
+def _json(value: Any, *, what: str) -> str:
+    """JSON text of ``value``; numpy scalars and arrays become numbers and lists."""
+
+    def plain(obj: Any) -> Any:
+        if isinstance(obj, (np.generic, np.ndarray)):
+            return obj.tolist()
+        raise TypeError(f"a {type(obj).__name__} is not JSON-serializable")
+
+    try:
+        return json.dumps(value, default=plain)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{what} must be JSON-serializable to be stored: {exc}") from None
+
+
+def _encode_array(value: Any, *, what: str) -> tuple[bytes, str]:
+    """Little-endian float64 bytes and JSON shape of an array, e.g. ``w``: (n,)."""
+    try:
+        arr = np.ascontiguousarray(value, dtype=_ARRAY_DTYPE)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{what} must be an array of numbers to be stored: {exc}") from None
+    return arr.tobytes(), json.dumps(list(arr.shape))
+
+
+def _decode_array(blob: bytes, shape_json: str, *, what: str) -> np.ndarray:
+    shape = tuple(json.loads(shape_json))
+    if len(blob) != _ARRAY_DTYPE.itemsize * int(np.prod(shape, dtype=np.int64)):
+        raise StoreError(f"{what} has {len(blob)} bytes, which does not fit its shape {shape}; the store is damaged")
+    return np.frombuffer(blob, dtype=_ARRAY_DTYPE).astype(np.float64).reshape(shape)
+
+
+def _as_int(value: Any, *, what: str, minimum: int | None = None) -> int:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise InputError(f"{what} must be an integer, got {value!r}")
+    value = int(value)
+    if minimum is not None and value < minimum:
+        raise InputError(f"{what} must be at least {minimum}, got {value}")
+    if not -(2**63) <= value < 2**63:
+        raise InputError(f"{what} is {value}, outside the 64-bit range a store holds")
+    return value
+
+
+def _holds(db: sqlite3.Connection, table: str, run_id: int, index: int) -> bool:
+    """Whether ``table`` ("trials" or "outcomes") has a row for trial ``index`` of the run."""
+    sql = f"SELECT 1 FROM {table} WHERE run_id = ? AND trial_index = ?"
+    return db.execute(sql, (run_id, index)).fetchone() is not None
+
+
+class _WriterLock:
+    """An exclusive, non-blocking lock on ``<store>.lock``, held by one writing process.
+
+    ``flock`` (``msvcrt.locking`` on Windows) belongs to the open file, so the kernel drops it when
+    the process dies: a stale lock of a killed run cannot exist. The file keeps the holder's pid
+    and host for the error message; it is left in place (deleting lock files races).
+    """
+
+    def __init__(self, store_path: Path) -> None:
+        self.path = store_path.with_name(store_path.name + ".lock")
+        self._file = None  # a file object, so the lock also goes when a forgotten store is collected
+
+    def acquire(self, store_path: Path) -> None:
+        try:
+            file = os.fdopen(os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644), "r+b", buffering=0)
+        except OSError as exc:
+            raise StoreError(
+                f"cannot create the writer lock {self.path} of store {store_path}: {exc.strerror}; "
+                "open the store read-only to look at it, or put the store in a writable folder"
+            ) from None
+        try:
+            if fcntl is not None:
+                fcntl.flock(file.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+            else:  # pragma: no cover - Windows
+                msvcrt.locking(file.fileno(), msvcrt.LK_NBLCK, 1)
+        except OSError:
+            holder = self._holder()
+            file.close()
+            raise StoreError(
+                f"store {store_path} is already open for writing by {holder}; one process writes a "
+                "store at a time. Wait for that run to finish (or stop it), or open the store "
+                "read-only (`corl runs`, `corl status`, export) to look at it"
+            ) from None
+        file.truncate(0)
+        file.write(f"{os.getpid()} {socket.gethostname()} {_now()}\n".encode())
+        self._file = file
+
+    def _holder(self) -> str:
+        try:
+            pid, host, since = self.path.read_text().split()
+        except (OSError, ValueError):
+            return "another process"
+        holder = f"process {pid} on {host} (since {since})"
+        if pid == str(os.getpid()) and host == socket.gethostname():
+            holder += ", that is this very process: close the other RunStore first"
+        return holder
+
+    def release(self) -> None:
+        if self._file is not None:
+            self._file.close()  # closing the file drops the lock
+            self._file = None
+
+
+class RunStore:
+    """Runs, their trials and outcomes in one SQLite file (see the module docstring).
+
+    Parameters
+    ----------
+    path : the store file, e.g. ``runs/door.corl``; its folder must exist.
+    create : create the file when it does not exist (writers only).
+    readonly : open for reading only; never blocks and is never blocked by a writer.
+
+    Every method that writes has committed to disk when it returns. A RunStore is used from the
+    thread that opened it; use it as a context manager or call :meth:`close`.
+    """
+
+    def __init__(self, path: str | os.PathLike, *, create: bool = True, readonly: bool = False) -> None:
+        self.path = Path(path)
+        self.readonly = bool(readonly)
+        self._create = bool(create) and not self.readonly
+        self._db: sqlite3.Connection | None = None
+        self._lock: _WriterLock | None = None
+        self._check_location(must_exist=not self._create)
+        try:
+            if not self.readonly:
+                self._lock = _WriterLock(self.path)
+                self._lock.acquire(self.path)
+            self._db = self._connect()
+            self._check_or_initialise()
+        except BaseException:
+            self.close()
+            raise
+
+    # -- opening -------------------------------------------------------------------------------
+    def _check_location(self, *, must_exist: bool) -> None:
+        folder = self.path.parent
+        if not folder.is_dir():
+            raise StoreError(
+                f"the folder {folder} of store {self.path} does not exist; create it first or "
+                "choose another --store path"
+            )
+        if self.path.exists() and not self.path.is_file():
+            raise StoreError(f"store path {self.path} is not a file; choose another --store path")
+        if must_exist and not self.path.exists():
+            raise StoreError(f"no store at {self.path}; check the --store path (`corl runs` lists a store's runs)")
+
+    def _connect(self) -> sqlite3.Connection:
+        try:
+            if self.readonly:
+                uri = self.path.resolve().as_uri() + "?mode=ro"
+                db = sqlite3.connect(uri, uri=True, isolation_level=None, timeout=_BUSY_TIMEOUT_S)
+            else:
+                db = sqlite3.connect(str(self.path), isolation_level=None, timeout=_BUSY_TIMEOUT_S)
+        except sqlite3.Error as exc:
+            raise self._error_opening(exc) from None
+        return db
+
+    def _damaged(self, detail: object) -> StoreError:
+        return StoreError(f"{self.path} is not a corl store or is damaged: {detail}; {_RESTORE_HINT}")
+
+    def _error_opening(self, exc: sqlite3.Error) -> StoreError:
+        if isinstance(exc, sqlite3.OperationalError):  # cannot open, busy, I/O: not the file's fault
+            return StoreError(
+                f"could not open store {self.path}: {exc}; check that the file is readable and, for "
+                "writing, that its folder is writable"
+            )
+        return self._damaged(exc)
+
+    def _check_or_initialise(self) -> None:
+        db = self._db
+        try:  # reading the header fails first on random bytes or a truncated file
+            app_id = db.execute("PRAGMA application_id").fetchone()[0]
+            header_format = db.execute("PRAGMA user_version").fetchone()[0]
+            n_objects = db.execute("SELECT COUNT(*) FROM sqlite_master").fetchone()[0]
+            if app_id == 0 and header_format == 0 and n_objects == 0:  # a new, empty file
+                if not self._create:
+                    raise StoreError(f"{self.path} is empty, not a corl store; check the --store path")
+                self._initialise()
+                return
+            if app_id != APPLICATION_ID:
+                raise self._damaged(f"it is an SQLite database of another program (application_id {app_id})")
+            self._check_format(header_format)
+            row = db.execute("SELECT value FROM meta WHERE key = 'format_version'").fetchone()
+            if row is None or not str(row[0]).isdigit():
+                raise self._damaged("its meta table has no format_version")
+            self._check_format(int(row[0]))
+            if int(row[0]) != header_format:
+                raise self._damaged(f"format_version {row[0]} in its meta table but {header_format} in its header")
+            problems = [line[0] for line in db.execute("PRAGMA quick_check")]  # every page readable
+            if problems != ["ok"]:
+                raise self._damaged("; ".join(problems[:3]))
+            if not self.readonly:
+                self._configure_writer()
+        except sqlite3.Error as exc:
+            raise self._error_opening(exc) from None
+
+    def _check_format(self, found: int) -> None:
+        if found > FORMAT_VERSION:
+            raise StoreError(
+                f"store {self.path} was written by a newer corl (format {found}, this corl reads up "
+                f"to {FORMAT_VERSION}): upgrade corl"
+            )
+        if found < 1:
+            raise self._damaged(f"unknown format {found}")
+
+    def _configure_writer(self) -> None:
+        db = self._db
+        if db.execute("PRAGMA journal_mode = WAL").fetchone()[0] != "wal":
+            raise StoreError(f"store {self.path} cannot use a write-ahead log; keep stores on a local disk")
+        db.execute("PRAGMA synchronous = FULL")  # a commit has reached the disk before it returns
+        db.execute("PRAGMA foreign_keys = ON")
+
+    def _initialise(self) -> None:
+        self._configure_writer()
+        with self._transaction("create the store") as db:
+            for statement in _SCHEMA:
+                db.execute(statement)
+            db.executemany(
+                "INSERT INTO meta (key, value) VALUES (?, ?)",
+                [("format_version", str(FORMAT_VERSION)), ("created", _now()),
+                 ("created_by", f"corl {library_versions()['corl']}")],
+            )
+            db.execute(f"PRAGMA application_id = {APPLICATION_ID}")
+            db.execute(f"PRAGMA user_version = {FORMAT_VERSION}")
+
+    # -- plumbing ------------------------------------------------------------------------------
+    @contextmanager
+    def _transaction(self, what: str) -> Iterator[sqlite3.Connection]:
+        """One write: ``BEGIN IMMEDIATE`` ... ``COMMIT``, rolled back on any error."""
+        db = self._connection()
+        if self.readonly:
+            raise StoreError(f"cannot {what}: store {self.path} was opened read-only")
+        try:
+            db.execute("BEGIN IMMEDIATE")
+            try:
+                yield db
+                db.execute("COMMIT")
+            except BaseException:
+                if db.in_transaction:
+                    db.execute("ROLLBACK")
+                raise
+        except sqlite3.Error as exc:
+            raise StoreError(f"could not {what} in store {self.path}: {exc}; nothing was written") from None
+
+    def _connection(self) -> sqlite3.Connection:
+        if self._db is None:
+            raise StoreError(f"store {self.path} is closed; open a new RunStore")
+        return self._db
+
+    def _read(self, sql: str, params: tuple = ()) -> list[tuple]:
+        try:
+            return self._connection().execute(sql, params).fetchall()
+        except sqlite3.Error as exc:
+            raise StoreError(f"could not read store {self.path}: {exc}") from None
+
+    def _run_status(self, db: sqlite3.Connection, run_id: int) -> RunStatus:
+        row = db.execute("SELECT status FROM runs WHERE id = ?", (run_id,)).fetchone()
+        if row is None:
+            raise StoreError(f"store {self.path} has no run {run_id}; `corl runs` lists its runs")
+        return RunStatus(row[0])
+
+    def _require_running(self, db: sqlite3.Connection, run_id: int) -> None:
+        if self._run_status(db, run_id) is not RunStatus.RUNNING:
+            raise StoreError(
+                f"run {run_id} is finished, so no trial is added to it; set its status to "
+                "'running' first to extend it"
+            )
+
+    # -- runs ----------------------------------------------------------------------------------
+    def create_run(
+        self, *, task: str, method: str, seed: int | None, config: Mapping[str, Any],
+        versions: Mapping[str, str] | None = None,
+    ) -> int:
+        """Start a run and return its id; ``versions`` defaults to :func:`library_versions` now."""
+        for what, value in (("task", task), ("method", method)):
+            if not isinstance(value, str) or not value:
+                raise InputError(f"{what} must be a non-empty string, got {value!r}")
+        seed = None if seed is None else _as_int(seed, what="seed")
+        config_json = _json(dict(config), what="config")
+        versions_json = _json(dict(library_versions() if versions is None else versions), what="versions")
+        with self._transaction(f"create a run of {method} on {task}") as db:
+            cursor = db.execute(
+                "INSERT INTO runs (created, task, method, seed, config, versions, status) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?)",
+                (_now(), task, method, seed, config_json, versions_json, RunStatus.RUNNING.value),
+            )
+        return int(cursor.lastrowid)
+
+    _RUNS_SQL = """SELECT r.id, r.created, r.task, r.method, r.seed, r.config, r.versions, r.status,
+        (SELECT COUNT(*) FROM trials t WHERE t.run_id = r.id),
+        (SELECT COUNT(*) FROM outcomes o WHERE o.run_id = r.id) FROM runs r"""
+
+    @staticmethod
+    def _run_info(row: tuple) -> RunInfo:
+        rid, created, task, method, seed, config, versions, status, n_trials, n_told = row
+        return RunInfo(rid, created, task, method, seed, json.loads(config), json.loads(versions),
+                       RunStatus(status), n_trials, n_told)
+
+    def runs(self) -> list[RunInfo]:
+        """Every run, oldest first."""
+        return [self._run_info(row) for row in self._read(self._RUNS_SQL + " ORDER BY r.id")]
+
+    def run(self, run_id: int) -> RunInfo:
+        """The run with id ``run_id``; raises :class:`StoreError` when there is none."""
+        rows = self._read(self._RUNS_SQL + " WHERE r.id = ?", (_as_int(run_id, what="run id"),))
+        if not rows:
+            raise StoreError(f"store {self.path} has no run {run_id}; `corl runs` lists its runs")
+        return self._run_info(rows[0])
+
+    def latest_run(self) -> RunInfo | None:
+        """The most recently created run, or None for an empty store."""
+        rows = self._read(self._RUNS_SQL + " ORDER BY r.id DESC LIMIT 1")
+        return self._run_info(rows[0]) if rows else None
+
+    def set_status(self, run_id: int, status: RunStatus | str) -> None:
+        """Mark a run "running" or "finished"."""
+        try:
+            status = RunStatus(status)
+        except ValueError:
+            choices = ", ".join(s.value for s in RunStatus)
+            raise InputError(f"status must be one of {choices}, got {status!r}") from None
+        run_id = _as_int(run_id, what="run id")
+        with self._transaction(f"mark run {run_id} {status.value}") as db:
+            self._run_status(db, run_id)
+            db.execute("UPDATE runs SET status = ? WHERE id = ?", (status.value, run_id))
+
+    # -- trials --------------------------------------------------------------------------------
+    def add_proposal(self, run_id: int, proposal: Proposal) -> None:
+        """Store a proposal before it is executed.
+
+        The index must be the run's next one and the previous trial must be told. Storing the same
+        trial again with identical content (bit for bit) does nothing, so a loop that re-asks a
+        pending trial after a crash can store it again; different content raises StoreError.
+        """
+        if not isinstance(proposal, Proposal):
+            raise InputError(f"add_proposal needs a Proposal, got {type(proposal).__name__}")
+        run_id = _as_int(run_id, what="run id")
+        index = _as_int(proposal.index, what="proposal index", minimum=0)
+        w, w_shape = _encode_array(proposal.w, what="w")
+        theta, theta_shape = _encode_array(proposal.theta, what="theta")
+        content = (str(proposal.step), _as_int(proposal.round, what="round"), w, w_shape, theta, theta_shape)
+        with self._transaction(f"store trial {index} of run {run_id}") as db:
+            self._require_running(db, run_id)
+            stored = db.execute(
+                "SELECT step, round, w, w_shape, theta, theta_shape FROM trials "
+                "WHERE run_id = ? AND trial_index = ?", (run_id, index),
+            ).fetchone()
+            if stored is not None:
+                if tuple(stored) == content:
+                    return  # the same trial asked again
+                names = ("step", "round", "w", "w", "theta", "theta")
+                changed = ", ".join(dict.fromkeys(n for n, a, b in zip(names, stored, content) if a != b))
+                raise StoreError(
+                    f"run {run_id} already holds a different trial {index} ({changed} differ); a stored "
+                    "trial is never replaced. Resume the run with replay() from a fresh learner, or "
+                    "start a new run"
+                )
+            last = db.execute("SELECT MAX(trial_index) FROM trials WHERE run_id = ?", (run_id,)).fetchone()[0]
+            expected = 0 if last is None else last + 1
+            if index != expected:
+                raise StoreError(f"run {run_id} expects trial {expected} next, got a proposal for trial {index}")
+            if last is not None and not _holds(db, "outcomes", run_id, last):
+                raise StoreError(
+                    f"trial {last} of run {run_id} is still pending; tell its outcome before storing trial {index}"
+                )
+            db.execute(
+                "INSERT INTO trials (run_id, trial_index, step, round, w, w_shape, theta, theta_shape, "
+                "proposed_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)", (run_id, index, *content, _now()),
+            )
+
+    def add_outcome(self, run_id: int, index: int, outcome: Outcome) -> None:
+        """Store the outcome of trial ``index``; a trial is told exactly once."""
+        if not isinstance(outcome, Outcome):
+            raise InputError(f"add_outcome needs an Outcome, got {type(outcome).__name__}")
+        run_id = _as_int(run_id, what="run id")
+        index = _as_int(index, what="trial index", minimum=0)
+        info = _json(dict(outcome.info), what="outcome.info")
+        with self._transaction(f"store the outcome of trial {index} of run {run_id}") as db:
+            self._require_running(db, run_id)
+            if not _holds(db, "trials", run_id, index):
+                raise StoreError(f"run {run_id} has no trial {index}; store its proposal (add_proposal) before its outcome")
+            if _holds(db, "outcomes", run_id, index):
+                raise StoreError(f"trial {index} of run {run_id} already has an outcome; a trial is told once")
+            db.execute(
+                "INSERT INTO outcomes (run_id, trial_index, success, return_, info, told_at) "
+                "VALUES (?, ?, ?, ?, ?, ?)",
+                (run_id, index, int(outcome.success), outcome.return_, info, _now()),
+            )
+
+    _TRIALS_SQL = """SELECT t.trial_index, t.step, t.round, t.w, t.w_shape, t.theta, t.theta_shape,
+        t.proposed_at, o.success, o.return_, o.info, o.told_at
+        FROM trials t LEFT JOIN outcomes o ON o.run_id = t.run_id AND o.trial_index = t.trial_index
+        WHERE t.run_id = ?"""
+
+    def _records(self, run_id: int, sql: str) -> list[TrialRecord]:
+        run_id = self.run(run_id).id  # raises for an unknown run
+        records = []
+        for row in self._read(sql, (run_id,)):
+            index, step, rnd, w, w_shape, theta, theta_shape, proposed_at, success, ret, info, told_at = row
+            what = f"trial {index} of run {run_id}"
+            w = _decode_array(w, w_shape, what=f"w of {what}")
+            theta = _decode_array(theta, theta_shape, what=f"theta of {what}")
+            proposal = Proposal(index, w, theta, step, rnd)
+            outcome = None if told_at is None else Outcome(bool(success), ret, json.loads(info))
+            records.append(TrialRecord(proposal, outcome, proposed_at, told_at))
+        return records
+
+    def trials(self, run_id: int) -> list[TrialRecord]:
+        """Every stored trial of a run in index order; ``outcome`` is None while pending."""
+        return self._records(run_id, self._TRIALS_SQL + " ORDER BY t.trial_index")
+
+    def pending(self, run_id: int) -> TrialRecord | None:
+        """The trial that was proposed but not told yet, if any (only the last one can be)."""
+        sql = self._TRIALS_SQL + " AND o.run_id IS NULL ORDER BY t.trial_index DESC LIMIT 1"
+        records = self._records(run_id, sql)
+        return records[0] if records else None
+
+    # -- export --------------------------------------------------------------------------------
+    def export(self, run_id: int, path: str | os.PathLike) -> tuple[Path, Path]:
+        """Write a run's trials as a table (``.csv``, or ``.parquet`` when pyarrow is installed).
+
+        One row per trial: index, step, round, theta_0..theta_{m-1}, success (1/0), return,
+        proposed_at, told_at; a pending trial has empty success, return and told_at. Floats are
+        written with enough digits to read back exactly. The w vectors go beside the table, to
+        ``<name>.w.npz`` with arrays ``index`` (d,) and ``w`` (d, n); load it with
+        ``np.load(..., allow_pickle=False)``.
+
+        Returns
+        -------
+        The paths of the table and of the ``.npz`` file.
+        """
+        path = Path(path)
+        if path.suffix not in (".csv", ".parquet"):
+            raise InputError(f"export writes a .csv or .parquet file, got {path.name!r}")
+        if not path.parent.is_dir():
+            raise InputError(f"the folder {path.parent} to export into does not exist; create it first")
+        if path.suffix == ".parquet":
+            try:
+                import pyarrow as pa
+                import pyarrow.parquet as pq
+            except ImportError:
+                raise StoreError("exporting to Parquet needs pyarrow: `pip install pyarrow`, or export to .csv") from None
+        records = self.trials(run_id)
+        w_shapes = {r.proposal.w.shape for r in records}
+        if len(w_shapes) > 1:
+            raise StoreError(f"run {run_id} holds w of several shapes {sorted(w_shapes)}, which cannot be stacked")
+        columns = _table_columns(records)
+        if path.suffix == ".csv":
+            _write_atomically(path, lambda f: _write_csv(f, columns), text=True)
+        else:
+            _write_atomically(path, lambda f: pq.write_table(pa.table(columns), f))
+        npz = path.with_suffix(".w.npz")
+        index = np.array([r.index for r in records], dtype=np.int64)
+        w = np.stack([r.proposal.w for r in records]) if records else np.empty((0, 0))
+        _write_atomically(npz, lambda f: np.savez(f, index=index, w=w))
+        return path, npz
+
+    # -- life cycle ----------------------------------------------------------------------------
+    def close(self) -> None:
+        """Close the file and release the writer lock; closing twice is harmless."""
+        if self._db is not None:
+            self._db.close()
+            self._db = None
+        if self._lock is not None:
+            self._lock.release()
+            self._lock = None
+
+    def __enter__(self) -> RunStore:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        mode = "read-only" if self.readonly else "writer"
+        state = "closed" if self._db is None else "open"
+        return f"RunStore({str(self.path)!r}, {mode}, {state})"
+
+
+def _table_columns(records: list[TrialRecord]) -> dict[str, list]:
+    """The export table as columns; missing values are None."""
+    m = max((r.proposal.theta.size for r in records), default=0)
+    columns: dict[str, list] = {"index": [], "step": [], "round": []}
+    columns.update({f"theta_{j}": [] for j in range(m)})
+    columns.update({"success": [], "return": [], "proposed_at": [], "told_at": []})
+    for r in records:
+        theta = r.proposal.theta.ravel()
+        columns["index"].append(r.index)
+        columns["step"].append(r.proposal.step)
+        columns["round"].append(r.proposal.round)
+        for j in range(m):
+            columns[f"theta_{j}"].append(float(theta[j]) if j < theta.size else None)
+        columns["success"].append(None if r.outcome is None else int(r.outcome.success))
+        columns["return"].append(None if r.outcome is None else r.outcome.return_)
+        columns["proposed_at"].append(r.proposed_at)
+        columns["told_at"].append(r.told_at)
+    return columns
+
+
+def _write_csv(file, columns: dict[str, list]) -> None:
+    writer = csv.writer(file)
+    writer.writerow(columns)
+    for row in zip(*columns.values()):
+        writer.writerow(["" if v is None else repr(v) if isinstance(v, float) else v for v in row])
+
+
+def _write_atomically(path: Path, write, *, text: bool = False) -> None:
+    """Write through a temporary file in the same folder, then rename: no half-written exports."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with open(fd, "w" if text else "wb", newline="" if text else None) as f:
+            write(f)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _bits_differ(asked: Any, stored: np.ndarray, what: str) -> str | None:
+    """Why ``asked`` is not bit for bit ``stored``, or None when it is."""
+    asked = np.asarray(asked, dtype=np.float64)
+    if asked.shape != stored.shape:
+        return f"{what} has shape {asked.shape}, the store holds {stored.shape}"
+    if asked.astype(_ARRAY_DTYPE).tobytes() == stored.astype(_ARRAY_DTYPE).tobytes():
+        return None
+    gap = np.abs(asked - stored)
+    j = int(np.nanargmax(gap)) if np.any(np.isfinite(gap)) else 0
+    return f"{what} differs (largest difference {gap.flat[j]:.3g} at entry {j})"
+
+
+def replay(learner: AskTellLearner, store: RunStore, run_id: int) -> int:
+    """Bring a fresh learner to where a stored run stopped (exact resume).
+
+    For each stored trial in index order (Alg. 1 replayed): ``p = learner.ask()`` must equal the
+    stored proposal bit for bit (index, step, round, w, theta); a told trial is then told to the
+    learner again. A final pending trial stays pending: the learner has asked it, so its next
+    ``ask()`` returns it again and the loop executes it as if nothing had happened.
+
+    The learner must be deterministic given its seed and freshly constructed with the run's task,
+    method, seed and configuration. Returns the number of outcomes told.
+    """
+    records = store.trials(run_id)
+    told = 0
+    for i, record in enumerate(records):
+        problem = None
+        try:
+            asked = learner.ask()
+        except CorlError as exc:
+            problem = f"the learner raised {type(exc).__name__} ({exc}) instead of proposing it"
+        else:
+            stored = record.proposal
+            if (asked.index, asked.step, asked.round) != (stored.index, stored.step, stored.round):
+                problem = (f"the learner proposed trial {asked.index} ({asked.step!r}, round {asked.round}), "
+                           f"the store holds trial {stored.index} ({stored.step!r}, round {stored.round})")
+            else:
+                problem = _bits_differ(asked.w, stored.w, "w") or _bits_differ(asked.theta, stored.theta, "theta")
+        if problem is not None:
+            raise StoreError(_mismatch_message(store, run_id, i, problem))
+        if record.outcome is None:
+            if i != len(records) - 1:
+                raise StoreError(f"trial {i} of run {run_id} is pending but later trials exist; the store is damaged")
+            break
+        learner.tell(record.outcome)
+        told += 1
+    return told
+
+
+def _mismatch_message(store: RunStore, run_id: int, i: int, problem: str) -> str:
+    run = store.run(run_id)
+    message = (
+        f"the store's run does not match this learner's configuration at trial {i}: {problem}. "
+        f"Resume run {run_id} with a fresh learner built like the original: task {run.task!r}, "
+        f"method {run.method!r}, seed {run.seed} and the stored configuration (`corl runs` shows it)"
+    )
+    changed = version_differences(run.versions, library_versions())
+    if changed:
+        message += "; the software also differs from the run's, which can change results: " + ", ".join(changed)
+    return message

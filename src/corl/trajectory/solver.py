@@ -1,0 +1,633 @@
+"""Constrained Gauss-Newton with augmented Lagrangian and a trust region (Eq. 8, Eq. 18).
+
+Alg. 1, step 1 improves the trajectory parameters on the analytic cost while the projection
+constraint keeps theta fixed and a ball limits the change (Eq. 8)::
+
+    w^(i+1) = argmin_w J(w)   s.t.  h(w) = 0,  ||w - w^(i)|| <= eps_max,    J(w) = r(w)^T r(w)  (Eq. 7)
+
+Alg. 1, step 2 maps a new theta to the closest trajectory (Eq. 18)::
+
+    w^(i+1) = argmin_w ||w - w*||^2   s.t.  h(w) = 0.
+
+Both are solved by :func:`solve` (Eq. 18 through :func:`project`): an augmented Lagrangian outer
+loop on ``h`` (Nocedal & Wright, Numerical Optimization, Framework 17.3; Toussaint's KOMO [27])
+around Levenberg-Marquardt damped Gauss-Newton steps, each of which minimises the quadratic model
+exactly inside the ball (More & Sorensen's Newton iteration on the ball multiplier), so every
+iterate satisfies the trust-region constraint.
+
+Glossary
+--------
+w          : decision variables (trajectory parameters), (n,)
+r, Jr      : cost residuals (p,) and their Jacobian dr/dw (p, n); J = r^T r (Eq. 7)
+h, Jh      : equality constraints (q,) and their Jacobian dh/dw (q, n); h(w) stands for h(w, theta)
+lam        : Lagrange multiplier estimate of h, (q,)
+mu         : penalty weight of the augmented Lagrangian
+L_A        : augmented Lagrangian  r^T r + lam^T h + mu h^T h
+g, H       : gradient (n,) and Gauss-Newton Hessian (n, n) of L_A
+damping    : Levenberg-Marquardt multiple of the identity added to H
+center, radius : the trust-region ball ||w - center|| <= radius (eps_max of Eq. 8)
+u, z       : offsets from the center of the current point and of the trial point, (n,)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, NamedTuple, Protocol, runtime_checkable
+
+import numpy as np
+import scipy.sparse as sp
+
+from corl.errors import InputError, NumericalError
+from corl.numerics import as_vector
+from corl.trajectory.linalg import trust_region_step
+
+__all__ = [
+    "LeastSquaresProblem",
+    "FunctionProblem",
+    "SolverConfig",
+    "IterationRecord",
+    "SolveResult",
+    "DEFAULT_CONFIG",
+    "solve",
+    "project",
+]
+
+Jacobian = Any  # np.ndarray or scipy.sparse matrix, (rows, n)
+
+_ACCEPT_RATIO = 1e-4  # accept a step when the actual decrease of L_A is >= this x the predicted one
+_NOISE = 8 * np.finfo(float).eps  # relative rounding level of L_A below which decreases are noise
+_DAMPING_FLOOR = 1e-15  # smallest damping, relative to the largest diagonal entry of H
+_STUCK_LIMIT = 2  # outer iterations without progress before declaring the constraints unsatisfiable
+
+
+# ---------------------------------------------------------------------------------------------
+# Problem interface
+# ---------------------------------------------------------------------------------------------
+@runtime_checkable
+class LeastSquaresProblem(Protocol):
+    """A sum-of-squares cost with equality constraints (Eq. 7-8)."""
+
+    def residuals(self, w: np.ndarray) -> tuple[np.ndarray, Jacobian]:
+        """Residuals ``r`` (p,) and Jacobian ``dr/dw`` (p, n), dense or scipy.sparse; ``J = r @ r``."""
+
+    def equalities(self, w: np.ndarray) -> tuple[np.ndarray, Jacobian]:
+        """Constraints ``h`` (q,) and Jacobian ``dh/dw`` (q, n), dense or scipy.sparse; q may be 0."""
+
+
+class FunctionProblem:
+    """A :class:`LeastSquaresProblem` made of two callables.
+
+    Parameters
+    ----------
+    residuals_fn : ``w (n,) -> (r (p,), dr/dw (p, n))``.
+    equalities_fn : ``w (n,) -> (h (q,), dh/dw (q, n))``, or None for an unconstrained problem.
+    """
+
+    def __init__(
+        self,
+        residuals_fn: Callable[[np.ndarray], tuple[np.ndarray, Jacobian]],
+        equalities_fn: Callable[[np.ndarray], tuple[np.ndarray, Jacobian]] | None = None,
+    ) -> None:
+        if not callable(residuals_fn):
+            raise InputError(f"residuals_fn must be callable w -> (r, dr/dw), got {residuals_fn!r}")
+        if equalities_fn is not None and not callable(equalities_fn):
+            raise InputError(f"equalities_fn must be callable w -> (h, dh/dw) or None, got {equalities_fn!r}")
+        self._residuals_fn = residuals_fn
+        self._equalities_fn = equalities_fn
+
+    def residuals(self, w: np.ndarray) -> tuple[np.ndarray, Jacobian]:
+        return self._residuals_fn(w)
+
+    def equalities(self, w: np.ndarray) -> tuple[np.ndarray, Jacobian]:
+        if self._equalities_fn is None:
+            return np.zeros(0), np.zeros((0, w.shape[0]))
+        return self._equalities_fn(w)
+
+
+class _ProjectionProblem:
+    """Eq. 18 as a least-squares problem: ``r = w - w*`` with Jacobian I, the given ``h``."""
+
+    def __init__(self, equalities_fn: Callable, w_star: np.ndarray) -> None:
+        self._equalities_fn = equalities_fn
+        self._w_star = w_star
+        self._identity: Jacobian | None = None
+
+    def residuals(self, w: np.ndarray) -> tuple[np.ndarray, Jacobian]:
+        if self._identity is None:  # sparse identity when h has a sparse Jacobian, dense otherwise
+            n = w.shape[0]
+            self._identity = sp.identity(n, format="csr") if sp.issparse(self.equalities(w)[1]) else np.eye(n)
+        return w - self._w_star, self._identity
+
+    def equalities(self, w: np.ndarray) -> tuple[np.ndarray, Jacobian]:
+        return self._equalities_fn(w)
+
+
+# ---------------------------------------------------------------------------------------------
+# Configuration and result
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SolverConfig:
+    """Settings of :func:`solve`.
+
+    Attributes
+    ----------
+    tol_constraint : feasibility tolerance on ``max |h|``.
+    tol_step : an inner solve has converged when the Gauss-Newton step satisfies
+        ``||dw|| <= tol_step * (1 + ||w||)``.
+    max_iterations : budget of Gauss-Newton iterations over all outer iterations (each one
+        evaluates the problem once, rejected steps included).
+    max_outer_iterations : budget of augmented-Lagrangian multiplier updates.
+    mu_init : first penalty, relative: ``mu = mu_init * maxdiag(Jr^T Jr) / maxdiag(Jh^T Jh)`` at
+        the start (ratio 1 when either is zero), so the penalty starts on the scale of the cost.
+    mu_growth : factor by which mu grows when ``||h||`` did not shrink by ``violation_decrease``.
+    mu_max : largest penalty, as a multiple of the first one; beyond it the constraints are
+        declared unsatisfiable.
+    violation_decrease : required factor of decrease of ``||h||`` per outer iteration.
+    inner_rtol : inexact inner solves before a multiplier update stop once the step is below
+        ``inner_rtol`` times their first accepted step (0 for exact solves); the final solve is always tight.
+    damping_init : first Levenberg-Marquardt damping, relative to the largest diagonal entry of H.
+    damping_max : relative damping at which no decrease of L_A is possible any more (stall).
+    """
+
+    tol_constraint: float = 1e-6
+    tol_step: float = 1e-10
+    max_iterations: int = 200
+    max_outer_iterations: int = 50
+    mu_init: float = 1.0
+    mu_growth: float = 10.0
+    mu_max: float = 1e10
+    violation_decrease: float = 0.25
+    inner_rtol: float = 1e-2
+    damping_init: float = 1e-12
+    damping_max: float = 1e12
+
+    def __post_init__(self) -> None:
+        for name in ("tol_constraint", "tol_step", "mu_init", "mu_max", "damping_init", "damping_max"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise InputError(f"SolverConfig.{name} must be a positive finite number, got {value!r}")
+        for name in ("max_iterations", "max_outer_iterations"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 1):
+                raise InputError(f"SolverConfig.{name} must be an integer >= 1, got {value!r}")
+        if not (math.isfinite(self.mu_growth) and self.mu_growth > 1):
+            raise InputError(f"SolverConfig.mu_growth must be > 1, got {self.mu_growth!r}")
+        if not (0 <= self.inner_rtol < 1):
+            raise InputError(f"SolverConfig.inner_rtol must be in [0, 1), got {self.inner_rtol!r}")
+        if not (0 < self.violation_decrease < 1):
+            raise InputError(f"SolverConfig.violation_decrease must be in (0, 1), got {self.violation_decrease!r}")
+        if self.mu_max < 1:
+            raise InputError(
+                f"SolverConfig.mu_max is relative to the first penalty and must be >= 1, got {self.mu_max!r}"
+            )
+        if not (_DAMPING_FLOOR <= self.damping_init < self.damping_max):
+            raise InputError(
+                f"SolverConfig needs {_DAMPING_FLOOR:g} <= damping_init < damping_max, "
+                f"got damping_init={self.damping_init!r}, damping_max={self.damping_max!r}"
+            )
+
+    @classmethod
+    def default(cls) -> SolverConfig:
+        """The defaults: max|h| <= 1e-6, steps down to 1e-10 relative."""
+        return cls()
+
+    @classmethod
+    def precise(cls) -> SolverConfig:
+        """Tight tolerances (max|h| <= 1e-10) for reference solutions and tests."""
+        return cls(tol_constraint=1e-10, tol_step=1e-13, max_iterations=1000, max_outer_iterations=100)
+
+
+DEFAULT_CONFIG = SolverConfig()
+
+
+class IterationRecord(NamedTuple):
+    """State after one accepted Gauss-Newton step (record 0 is the start).
+
+    Attributes
+    ----------
+    iteration : Gauss-Newton iterations done so far (rejected steps included).
+    outer : augmented-Lagrangian iteration the step belongs to.
+    cost : ``J(w) = r^T r``.
+    constraint_error : ``max |h(w)|`` (0 without constraints).
+    step_norm : ``||w - w_previous||``.
+    damping : Levenberg-Marquardt damping used for the step (absolute).
+    mu : penalty weight at the time of the step.
+    w : (n,) the iterate.
+    """
+
+    iteration: int
+    outer: int
+    cost: float
+    constraint_error: float
+    step_norm: float
+    damping: float
+    mu: float
+    w: np.ndarray
+
+
+@dataclass(frozen=True)
+class SolveResult:
+    """Outcome of :func:`solve` or :func:`project`.
+
+    Attributes
+    ----------
+    w : (n,) the solution (always inside the trust region).
+    cost : ``J(w) = r^T r`` at the solution.
+    constraint_error : ``max |h(w)|``.
+    multipliers : (q,) Lagrange multipliers ``nu`` of h with ``grad J + Jh^T nu ~ 0`` (plus the
+        ball's normal when the trust region is active).
+    converged : True when the inner problem converged and ``constraint_error <= tol_constraint``.
+    status : what happened, in words (why it stopped and what to change if it failed).
+    iterations : Gauss-Newton iterations (rejected steps included).
+    outer_iterations : augmented-Lagrangian iterations.
+    evaluations : calls of ``residuals`` (each paired with one call of ``equalities``).
+    trust_region_active : True when ``||w - center||`` is at the radius.
+    history : one :class:`IterationRecord` per accepted step, the start first.
+    """
+
+    w: np.ndarray
+    cost: float
+    constraint_error: float
+    multipliers: np.ndarray
+    converged: bool
+    status: str
+    iterations: int
+    outer_iterations: int
+    evaluations: int
+    trust_region_active: bool
+    history: tuple[IterationRecord, ...]
+
+
+# ---------------------------------------------------------------------------------------------
+# Evaluation
+# ---------------------------------------------------------------------------------------------
+class _Point(NamedTuple):
+    """The problem evaluated at ``w``: residuals, constraints, Jacobians and their squared norms."""
+
+    w: np.ndarray
+    r: np.ndarray
+    Jr: Jacobian
+    h: np.ndarray
+    Jh: Jacobian
+    rr: float
+    hh: float
+
+
+def _checked_pair(pair, n: int, what: str, jac_name: str) -> tuple[np.ndarray, Jacobian]:
+    """Validate one ``(value, Jacobian)`` return (done on every call; cheap)."""
+    try:
+        value, jac = pair
+    except (TypeError, ValueError):
+        raise InputError(f"{what} must return a pair (value, Jacobian), got {type(pair).__name__}") from None
+    value = np.asarray(value, dtype=float)
+    if value.ndim != 1:
+        raise InputError(f"{what} returned a value of shape {value.shape}; expected a vector")
+    if type(jac) is not np.ndarray and not sp.issparse(jac):
+        jac = np.asarray(jac, dtype=float)
+    if jac.shape != (value.shape[0], n):
+        raise InputError(
+            f"{what} returned {jac_name} of shape {jac.shape}, expected ({value.shape[0]}, {n}) "
+            f"for a value of shape {value.shape} and w of shape ({n},)"
+        )
+    return value, jac
+
+
+def _evaluate(problem: LeastSquaresProblem, w: np.ndarray) -> _Point:
+    n = w.shape[0]
+    r, Jr = _checked_pair(problem.residuals(w), n, "residuals", "dr/dw")
+    h, Jh = _checked_pair(problem.equalities(w), n, "equalities", "dh/dw")
+    rr = float(r @ r)
+    hh = float(h @ h)
+    if not math.isfinite(rr):
+        raise NumericalError(
+            f"residuals returned NaN or inf at w = {np.array2string(w, precision=6, threshold=8)}; "
+            "check the cost features (a division by zero or an overflow) and the start"
+        )
+    if not math.isfinite(hh):
+        raise NumericalError(
+            f"equalities returned NaN or inf at w = {np.array2string(w, precision=6, threshold=8)}; "
+            "check the projection constraint h(w, theta) and its domain"
+        )
+    if (type(Jr) is not type(Jh)) and h.shape[0] > 0 and sp.issparse(Jr) != sp.issparse(Jh):  # mixed: go sparse
+        Jr, Jh = sp.csr_matrix(Jr), sp.csr_matrix(Jh)
+    return _Point(w, r, Jr, h, Jh, rr, hh)
+
+
+def _max_abs(h: np.ndarray) -> float:
+    """``max |h|`` (0 for an empty h); the ufunc reduce skips ndarray.max's Python wrapper."""
+    return float(np.maximum.reduce(np.abs(h))) if h.shape[0] else 0.0
+
+
+def _max_diag(J: Jacobian) -> float:
+    """Largest diagonal entry of ``J^T J`` (largest squared column norm), J: (rows, n)."""
+    if J.shape[0] == 0:
+        return 0.0
+    if type(J) is not np.ndarray:  # scipy.sparse
+        return float(J.multiply(J).sum(axis=0).max())
+    return float(np.maximum.reduce(np.add.reduce(J * J, axis=0)))
+
+
+def _lagrangian(pt: _Point, lam: np.ndarray, mu: float) -> tuple[float, float]:
+    """L_A = r^T r + lam^T h + mu h^T h, and the rounding noise of its evaluation."""
+    lin = float(lam @ pt.h)
+    return pt.rr + lin + mu * pt.hh, _NOISE * (pt.rr + abs(lin) + mu * pt.hh)
+
+
+def _gauss_newton(pt: _Point, lam: np.ndarray, mu: float) -> tuple[np.ndarray, Jacobian]:
+    """Gradient g (n,) and Gauss-Newton Hessian H (n, n) of L_A at ``pt``."""
+    # g = 2 Jr^T r + Jh^T (lam + 2 mu h);  H = 2 (Jr^T Jr + mu Jh^T Jh)  (second derivatives of r, h dropped)
+    g = 2.0 * (pt.Jr.T @ pt.r)
+    H = 2.0 * (pt.Jr.T @ pt.Jr)
+    if pt.h.shape[0]:
+        g += pt.Jh.T @ (lam + (2.0 * mu) * pt.h)
+        H = H + (2.0 * mu) * (pt.Jh.T @ pt.Jh)
+    if type(H) is not np.ndarray:  # scipy.sparse
+        H = H.tocsc()
+        g = np.asarray(g, dtype=float).ravel()
+    if not math.isfinite(float(g @ g)):
+        raise NumericalError(
+            "the gradient of the augmented Lagrangian is NaN or inf; check the Jacobians dr/dw and dh/dw"
+        )
+    return g, H
+
+
+# ---------------------------------------------------------------------------------------------
+# The solver
+# ---------------------------------------------------------------------------------------------
+_CONVERGED, _APPROXIMATE, _STALLED, _BUDGET = "converged", "approximate", "stalled", "budget"
+
+
+class _Run:
+    """Mutable state of one :func:`solve` call: the ball, damping, counters and history."""
+
+    def __init__(self, problem, config: SolverConfig, center, radius: float) -> None:
+        self.problem = problem
+        self.config = config
+        self.center = center  # None without trust region
+        self.radius = radius
+        self.damping = 0.0  # set from the first Hessian
+        self.damping_start = self.damping_floor = 0.0
+        self.damping_ceiling = 0.0
+        self.growth = 2.0  # Nielsen's factor for consecutive rejections
+        self.iterations = 0
+        self.evaluations = 0
+        self.outer = 0
+        self.history: list[IterationRecord] = []
+
+    def evaluate(self, w: np.ndarray) -> _Point:
+        self.evaluations += 1
+        return _evaluate(self.problem, w)
+
+    def record(self, pt: _Point, step_norm: float, damping: float, mu: float) -> None:
+        self.history.append(
+            IterationRecord(self.iterations, self.outer, pt.rr, _max_abs(pt.h), step_norm, damping, mu, pt.w)
+        )
+
+    def set_damping_scale(self, H: Jacobian) -> None:
+        scale = float(np.maximum.reduce(H.diagonal()))
+        scale = scale if scale > 0 and math.isfinite(scale) else 1.0
+        self.damping = self.damping_start = self.config.damping_init * scale
+        self.damping_floor = _DAMPING_FLOOR * scale
+        self.damping_ceiling = self.config.damping_max * scale
+
+    def new_point(self, w: np.ndarray, d: np.ndarray, z: np.ndarray | None) -> np.ndarray:
+        """``w + d``, placed exactly on the ball when the step ended on its boundary."""
+        if z is None:
+            return w + d
+        w_new = self.center + z
+        dist = math.sqrt((w_new - self.center) @ (w_new - self.center))
+        if dist > self.radius:  # rounding in center + z
+            w_new = self.center + (w_new - self.center) * (self.radius / dist)
+        return w_new
+
+    def minimize_lagrangian(self, pt: _Point, lam: np.ndarray, mu: float, rtol: float) -> tuple[_Point, str]:
+        """Inner loop: damped Gauss-Newton on L_A inside the ball, from ``pt`` until the step is small.
+
+        The step is small when ``||d|| <= tol_step (1 + ||w||)``, or, with ``rtol > 0`` (an inexact
+        solve for a multiplier update), when ``||d|| <= rtol`` times the first accepted step of this
+        call.
+        """
+        cfg = self.config
+        first = 0.0  # norm of the first accepted step of this call
+        L, _ = _lagrangian(pt, lam, mu)
+        g, H = _gauss_newton(pt, lam, mu)
+        if self.damping == 0.0:
+            self.set_damping_scale(H)
+        # lam or mu changed, so damping raised for the previous L_A need not apply: start low again.
+        self.damping = min(self.damping, self.damping_start)
+        self.growth = 2.0
+        while True:
+            if self.iterations >= cfg.max_iterations:
+                return pt, _BUDGET
+            u = None if self.center is None else pt.w - self.center
+            d, z = trust_region_step(H, g, self.damping, u, self.radius)
+            dn = math.sqrt(d @ d)
+            if not math.isfinite(dn):
+                raise NumericalError(
+                    "the Gauss-Newton step is NaN or inf; the Jacobians are probably non-finite or wildly scaled"
+                )
+            predicted = -(float(g @ d) + 0.5 * float(d @ (H @ d)))
+            if dn <= cfg.tol_step * (1.0 + math.sqrt(pt.w @ pt.w)) or predicted <= 0.0:
+                return pt, _CONVERGED
+            if dn <= rtol * first:
+                return pt, _APPROXIMATE
+            self.iterations += 1
+            trial = self.evaluate(self.new_point(pt.w, d, z))
+            L_trial, noise = _lagrangian(trial, lam, mu)
+            rho = (L - L_trial) / predicted
+            # Near the solution the predicted decrease drops below the rounding noise of L_A; the
+            # step, computed from derivatives, is still good, so accept it unless L_A clearly rose.
+            at_noise_level = predicted <= noise and L_trial <= L + noise
+            if rho > _ACCEPT_RATIO or at_noise_level:  # accept; Nielsen's damping update
+                self.record(trial, dn, self.damping, mu)
+                rho = 1.0 if at_noise_level else rho
+                self.damping = max(self.damping * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), self.damping_floor)
+                self.growth = 2.0
+                first = first or dn
+                pt, L = trial, L_trial
+                g, H = _gauss_newton(pt, lam, mu)
+            else:  # reject: raise the damping
+                self.damping *= self.growth
+                self.growth *= 2.0
+                if self.damping > self.damping_ceiling:
+                    return pt, _STALLED
+
+
+def _prepare_ball(w: np.ndarray, center, radius) -> tuple[np.ndarray, np.ndarray | None, float]:
+    """Validate the trust region and move ``w`` into it; returns (w, center or None, radius)."""
+    try:
+        radius = float(radius)
+    except (TypeError, ValueError):
+        raise InputError(f"radius must be a positive number or inf, got {radius!r}") from None
+    if not radius > 0:  # also catches NaN
+        raise InputError(f"radius must be positive (eps_max of Eq. 8), got {radius!r}")
+    if radius == math.inf:
+        return w, None, radius
+    center = w.copy() if center is None else as_vector(center, w.shape[0], name="center")
+    dist = math.sqrt((w - center) @ (w - center))
+    if dist > radius:  # start outside the ball: use its closest point in the ball
+        w = center + (w - center) * (radius / dist)
+    return w, center, radius
+
+
+def solve(
+    problem: LeastSquaresProblem,
+    w_init,
+    *,
+    center=None,
+    radius: float = math.inf,
+    config: SolverConfig = DEFAULT_CONFIG,
+) -> SolveResult:
+    """Solve ``min_w r(w)^T r(w)  s.t.  h(w) = 0,  ||w - center|| <= radius`` (Eq. 8).
+
+    Parameters
+    ----------
+    problem : a :class:`LeastSquaresProblem` (use :class:`FunctionProblem` for two callables).
+    w_init : (n,) start. When it lies outside the ball it is first moved to the ball's closest point.
+    center : (n,) center of the trust region; default ``w_init`` (Alg. 1, step 1: ``w^(i)``).
+        Ignored when ``radius`` is ``inf``.
+    radius : trust-region radius ``eps_max``; ``inf`` (default) for none.
+    config : tolerances and budgets, see :class:`SolverConfig`.
+
+    Returns
+    -------
+    SolveResult
+        ``converged`` is False (with the reason in ``status``) when the constraints could not be
+        satisfied - inconsistent, or out of reach inside the ball - or a budget ran out. Every
+        iterate, and the result, satisfies ``||w - center|| <= radius`` up to rounding.
+
+    Raises
+    ------
+    InputError
+        Bad shapes of ``w_init``, ``center``, or of what the problem returns; a bad radius.
+    NumericalError
+        The problem returned NaN or inf.
+    """
+    if not isinstance(config, SolverConfig):
+        raise InputError(f"config must be a SolverConfig, got {type(config).__name__}")
+    w = as_vector(w_init, name="w_init").copy()
+    if w.shape[0] == 0:
+        raise InputError("w_init is empty; the solver needs at least one parameter")
+    w, center, radius = _prepare_ball(w, center, radius)
+    run = _Run(problem, config, center, radius)
+    pt = run.evaluate(w)
+    run.record(pt, 0.0, 0.0, 0.0)
+    pt, lam, mu, converged, status = _augmented_lagrangian(run, pt)
+    return _result(pt, run, lam, mu, converged, status)
+
+
+def _augmented_lagrangian(run: _Run, pt: _Point) -> tuple[_Point, np.ndarray, float, bool, str]:
+    """Outer loop (N&W Framework 17.3): minimise L_A over w, then lam <- lam + 2 mu h.
+
+    Returns the final point, multipliers ``lam`` (q,), penalty ``mu``, converged flag and status.
+    """
+    config = run.config
+    q = pt.h.shape[0]
+    lam = np.zeros(q)
+    c_cost, c_con = _max_diag(pt.Jr), _max_diag(pt.Jh)
+    mu0 = mu = config.mu_init * (c_cost / c_con if c_cost > 0 and c_con > 0 else 1.0)
+    # Inexact inner solves while the multipliers are still moving; a tight one before stopping.
+    rtol = config.inner_rtol if q else 0.0
+    previous_w, previous_violation = pt.w, math.sqrt(pt.hh)
+    stuck = 0
+    for outer in range(config.max_outer_iterations):
+        run.outer = outer
+        pt, inner = run.minimize_lagrangian(pt, lam, mu, rtol)
+        error = _max_abs(pt.h)
+        if inner == _APPROXIMATE and error <= config.tol_constraint:
+            pt, inner = run.minimize_lagrangian(pt, lam, mu, 0.0)  # polish with the same lam, mu
+            error = _max_abs(pt.h)
+        if inner == _BUDGET:
+            return pt, lam, mu, False, (
+                f"not converged: max_iterations = {config.max_iterations} Gauss-Newton iterations used, "
+                f"max|h| = {error:.2e}; raise max_iterations or loosen tol_step / tol_constraint"
+            )
+        if error <= config.tol_constraint:
+            how = "the step is below tol_step" if inner == _CONVERGED else "no step decreases L_A any more"
+            return pt, lam, mu, True, (
+                f"converged: {how} and max|h| = {error:.2e} <= tol_constraint = {config.tol_constraint:g}"
+            )
+        violation = math.sqrt(pt.hh)
+        # No progress: w stopped moving and ||h|| stopped shrinking (a local minimum of ||h||^2).
+        moved = math.sqrt((pt.w - previous_w) @ (pt.w - previous_w))
+        still = moved <= config.tol_step * (1.0 + math.sqrt(pt.w @ pt.w))
+        stuck = stuck + 1 if still and violation >= 0.999 * previous_violation else 0
+        shrunk = violation <= config.violation_decrease * previous_violation
+        if stuck >= _STUCK_LIMIT or (not shrunk and mu * config.mu_growth > config.mu_max * mu0):
+            return pt, lam, mu, False, _infeasible_status(pt, run, error, mu, stuck >= _STUCK_LIMIT)
+        # Multiplier update: lam <- lam + 2 mu h; grow mu when ||h|| did not shrink enough.
+        lam = lam + (2.0 * mu) * pt.h
+        if not shrunk:
+            mu *= config.mu_growth
+        previous_w, previous_violation = pt.w, violation
+    return pt, lam, mu, False, (
+        f"not converged: max_outer_iterations = {config.max_outer_iterations} multiplier updates used, "
+        f"max|h| = {_max_abs(pt.h):.2e}; raise max_outer_iterations or mu_growth"
+    )
+
+
+def _infeasible_status(pt: _Point, run: _Run, error: float, mu: float, stuck: bool) -> str:
+    where = ""
+    if run.center is not None:
+        dist = math.sqrt((pt.w - run.center) @ (pt.w - run.center))
+        if dist >= run.radius * (1 - 1e-9):
+            where = f" inside the trust region of radius {run.radius:g} (active)"
+    why = (
+        "w stopped moving (a local minimum of ||h||^2, or a point where dh/dw degenerates)"
+        if stuck
+        else f"the penalty reached mu = {mu:.3g}"
+    )
+    return (
+        f"not converged: the equality constraints cannot be satisfied{where}: max|h| = {error:.2e} > "
+        f"tol_constraint = {run.config.tol_constraint:g} and {why}; check that the constraints are "
+        "consistent and reachable from the start (a larger radius or a start closer to h(w) = 0)"
+    )
+
+
+def _result(pt: _Point, run: _Run, lam: np.ndarray, mu: float, converged: bool, status: str) -> SolveResult:
+    active = False
+    if run.center is not None:
+        dist = math.sqrt((pt.w - run.center) @ (pt.w - run.center))
+        active = dist >= run.radius * (1 - 1e-9)
+    return SolveResult(
+        w=pt.w,
+        cost=pt.rr,
+        constraint_error=_max_abs(pt.h),
+        multipliers=lam + (2.0 * mu) * pt.h,  # first-order estimate: grad J + Jh^T (lam + 2 mu h) = 0
+        converged=converged,
+        status=status,
+        iterations=run.iterations,
+        outer_iterations=run.outer + 1,
+        evaluations=run.evaluations,
+        trust_region_active=active,
+        history=tuple(run.history),
+    )
+
+
+def project(equalities, w_star, *, w_init=None, config: SolverConfig = DEFAULT_CONFIG) -> SolveResult:
+    """Closest point to ``w_star`` that satisfies the constraints (Eq. 18).
+
+    ``argmin_w ||w - w*||^2  s.t.  h(w) = 0``; Alg. 1, step 2 uses it to turn a new theta into a
+    trajectory near the last optimum ``w*``.
+
+    Parameters
+    ----------
+    equalities : callable ``w (n,) -> (h (q,), dh/dw (q, n))``, or an object with an
+        ``equalities`` method (a :class:`LeastSquaresProblem`).
+    w_star : (n,) point to project.
+    w_init : (n,) start; default ``w_star``.
+    config : see :class:`SolverConfig`.
+
+    Returns
+    -------
+    SolveResult
+        ``cost`` is ``||w - w*||^2``. The residual Jacobian is a sparse identity when ``dh/dw``
+        is sparse, a dense one otherwise.
+    """
+    w_star = as_vector(w_star, name="w_star")
+    fn = getattr(equalities, "equalities", equalities)
+    if not callable(fn):
+        raise InputError(f"equalities must be a callable w -> (h, dh/dw) or a problem, got {equalities!r}")
+    start = w_star if w_init is None else as_vector(w_init, w_star.shape[0], name="w_init")
+    return solve(_ProjectionProblem(fn, w_star), start, config=config)
