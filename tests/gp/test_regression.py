@@ -31,6 +31,20 @@ def test_posterior_matches_direct_formula_with_prior_mean():
     np.testing.assert_allclose(var_noisy - var, 0.04, rtol=1e-10)
 
 
+def test_large_test_sets_are_predicted_in_blocks_consistently():
+    rng = np.random.default_rng(8)
+    X = rng.uniform(-3, 3, size=(300, 1))
+    y = np.cos(X[:, 0])
+    Xs = rng.uniform(-4, 4, size=(700, 1))  # several blocks of 65536 // 300 = 218 points
+    kernel = SquaredExponential(0.4, 2.0)
+    gp = GPRegression(kernel, noise_std=0.3, prior_mean=0.5).fit(X, y)
+    mean, var = gp.predict(Xs)
+    Ky = kernel(X) + 0.09 * np.eye(300)
+    ks = kernel(X, Xs)
+    np.testing.assert_allclose(mean, 0.5 + ks.T @ np.linalg.solve(Ky, y - 0.5), atol=1e-8)
+    np.testing.assert_allclose(var, 4.0 - np.sum(ks * np.linalg.solve(Ky, ks), axis=0), atol=1e-8)
+
+
 def test_log_marginal_likelihood_matches_gaussian_logpdf():
     X, y, _ = _problem(1)
     kernel = SquaredExponential(0.8, 1.2)

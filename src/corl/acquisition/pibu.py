@@ -33,6 +33,7 @@ import numpy as np
 
 from corl.acquisition.pi import probability_of_improvement
 from corl.errors import InputError
+from corl.gp.classification import expected_sigmoid
 
 __all__ = ["PIBUVariant", "PIBUConfig", "PIBU"]
 
@@ -92,7 +93,7 @@ class PIBU:
         else:
             pi = np.zeros(len(X))
         if cfg.variant is PIBUVariant.AUTHORS:
-            proba = self.classifier.predict_proba(X)
+            proba = expected_sigmoid(g, g_var)  # E[sigma(g)] from the latent already computed
             inner = proba > cfg.inner_threshold
             band = (proba >= cfg.band_low) & (proba <= cfg.band_high)
             sf = float(self.classifier.kernel.signal_std)

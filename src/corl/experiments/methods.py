@@ -62,6 +62,8 @@ def _factory(name: str, s: MethodSettings) -> Callable:
     eps_theta = s.corl.eps_theta
     if name == "PIBU":
         return lambda b, x0, rng, n: PIBUOptimizer(b, s.bo(), max_evals=n, seed=rng)
+    if name == "PIBU(budget)":  # over w: the 1e-3 stopping rule fires before the optimum is pinned down
+        return lambda b, x0, rng, n: PIBUOptimizer(b, s.bo(StopRule.BUDGET), max_evals=n, seed=rng)
     if name == "PIBU(literal)":
         return lambda b, x0, rng, n: PIBUOptimizer(b, s.bo(StopRule.SMALL_STEP, eps_theta),
                                                    PIBUConfig(variant=PIBUVariant.LITERAL), max_evals=n, seed=rng)
@@ -92,5 +94,6 @@ def make_method(name: str, task: Task, *, seed: int = 0, settings: MethodSetting
         raise InputError(f"method '{name}' searches w directly and needs task.w_bounds; task '{task.name}' has none")
     rng = np.random.default_rng([seed, 12345])
     w0 = np.asarray(task.demonstration().w, dtype=float)
-    optimizer = _factory(name, settings)(task.w_bounds, w0, rng, settings.direct_budget - 1)
+    inner = "PIBU(budget)" if name == "PIBU" else name
+    optimizer = _factory(inner, settings)(task.w_bounds, w0, rng, settings.direct_budget - 1)
     return DirectSearch(task, optimizer, failure_cost=-settings.failure_return)

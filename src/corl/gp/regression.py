@@ -118,6 +118,37 @@ def maximize_in_log_space(objective, x0: np.ndarray, log_bounds: np.ndarray, n_r
     return best_x
 
 
+_CHUNK_ELEMENTS = 1 << 16  # test points per block * training points: blocks of ~0.5 MB stay in cache
+
+
+def gaussian_posterior(kernel: SquaredExponential, X, Xs, weights, V, prior_mean: float):
+    """Mean and variance ``m0 + ks^T weights`` and ``k(x*, x*) - |V ks|^2`` at test inputs.
+
+    The common last step of GPML Alg. 2.1 (``V = L^{-1}``) and Alg. 3.2 (``V = L^{-1} sW``).
+    Test points are processed in blocks so the (d, block) temporaries stay in cache.
+
+    Parameters
+    ----------
+    kernel : covariance function.
+    X : (d, m) training inputs, d >= 1; Xs : (s, m) test inputs.
+    weights : (d,); V : (d, d).
+
+    Returns
+    -------
+    mean, var : (s,) each; var is floored.
+    """
+    s = Xs.shape[0]
+    mean, var = np.empty(s), kernel.diag(Xs)
+    block = max(64, _CHUNK_ELEMENTS // X.shape[0])
+    for start in range(0, s, block):
+        rows = slice(start, start + block)
+        ks = kernel(Xs[rows], X).T  # (d, block)
+        mean[rows] = weights @ ks
+        v = V @ ks
+        var[rows] -= np.einsum("ij,ij->j", v, v)
+    return mean + prior_mean, floor_variance(var)
+
+
 class GPRegression:
     """GP regression with a constant prior mean and Gaussian noise (Eq. 11-12, GPML Alg. 2.1).
 
@@ -204,14 +235,11 @@ class GPRegression:
         """
         self._check_fitted()
         Xs = as_matrix(Xs, self.X_.shape[1], name="Xs")
-        kss = self.kernel_.diag(Xs)
         if self.X_.shape[0] == 0:
-            mean, var = np.full(Xs.shape[0], self.prior_mean), kss.copy()
+            mean, var = np.full(Xs.shape[0], self.prior_mean), self.kernel_.diag(Xs)
         else:
-            ks = self.kernel_(Xs, self.X_).T  # (d, s)
-            mean = self.prior_mean + self.alpha_ @ ks  # Eq. 11
-            v = self._L_inv @ ks  # v = L \ ks
-            var = kss - np.einsum("ij,ij->j", v, v)  # Eq. 12, GPML Alg. 2.1 lines 5-6
+            # Eq. 11-12 as GPML Alg. 2.1 lines 4-6: mean = m0 + ks^T alpha, var = kss - |L \ ks|^2
+            mean, var = gaussian_posterior(self.kernel_, self.X_, Xs, self.alpha_, self._L_inv, self.prior_mean)
         if include_noise:
             var = var + self.noise_std_**2
         return mean, floor_variance(var)
