@@ -51,7 +51,7 @@ def test_mode_satisfies_the_fixed_point_equation():
 
 def test_paper_hyperparameters_converge_without_overflow():
     X, s = _paper_problem()
-    with warnings.catch_warnings(), np.errstate(all="raise"):
+    with warnings.catch_warnings(), np.errstate(over="raise", invalid="raise", divide="raise"):
         warnings.simplefilter("error")
         gp = GPClassifier(SquaredExponential(0.4, 10.0), prior_mean=-7.0, warm_start=False).fit(X, s)
         mean, var = gp.predict_latent(np.linspace(-6, 6, 201))

@@ -35,7 +35,7 @@ def test_large_test_sets_are_predicted_in_blocks_consistently():
     rng = np.random.default_rng(8)
     X = rng.uniform(-3, 3, size=(300, 1))
     y = np.cos(X[:, 0])
-    Xs = rng.uniform(-4, 4, size=(700, 1))  # several blocks of 65536 // 300 = 218 points
+    Xs = rng.uniform(-4, 4, size=(700, 1))  # several blocks of 32768 // 300 = 109 points
     kernel = SquaredExponential(0.4, 2.0)
     gp = GPRegression(kernel, noise_std=0.3, prior_mean=0.5).fit(X, y)
     mean, var = gp.predict(Xs)

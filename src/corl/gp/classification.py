@@ -273,7 +273,8 @@ class GPClassifier:
     """Binary GP classifier with logistic likelihood and Laplace approximation (Eq. 13).
 
     ``__init__`` only stores settings; :meth:`fit` learns. Hyperparameters stay fixed (the paper
-    fixes them) unless :meth:`optimize_hyperparameters` is called.
+    fixes them): :meth:`fit` always uses ``kernel``; :meth:`optimize_hyperparameters` stores its
+    result in ``kernel_`` only. The prior mean is never fitted.
 
     Parameters
     ----------

@@ -20,7 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import linalg, optimize
+from scipy import linalg
 
 from corl.errors import InputError, NumericalError, StateError
 from corl.gp.kernels import PAPER_LENGTHSCALE, PAPER_SIGNAL_STD, SquaredExponential
@@ -95,6 +95,8 @@ def maximize_in_log_space(objective, x0: np.ndarray, log_bounds: np.ndarray, n_r
     ``objective`` returns the value (``jac=False``) or ``(value, gradient)``; a start whose
     objective fails numerically is skipped. Returns the best log_params found, (p,).
     """
+    from scipy import optimize  # only hyperparameter fitting needs it; keeps `import corl.gp` light
+
     rng = np.random.default_rng(seed)
     lo, hi = log_bounds[:, 0], log_bounds[:, 1]
     starts = [np.clip(x0, lo, hi)] + [rng.uniform(lo, hi) for _ in range(int(n_restarts))]
@@ -118,7 +120,7 @@ def maximize_in_log_space(objective, x0: np.ndarray, log_bounds: np.ndarray, n_r
     return best_x
 
 
-_CHUNK_ELEMENTS = 1 << 16  # test points per block * training points: blocks of ~0.5 MB stay in cache
+_CHUNK_ELEMENTS = 1 << 15  # test points per block * training points: 256 kB blocks stay in cache
 
 
 def gaussian_posterior(kernel: SquaredExponential, X, Xs, weights, V, prior_mean: float):
@@ -152,8 +154,11 @@ def gaussian_posterior(kernel: SquaredExponential, X, Xs, weights, V, prior_mean
 class GPRegression:
     """GP regression with a constant prior mean and Gaussian noise (Eq. 11-12, GPML Alg. 2.1).
 
-    ``__init__`` only stores settings; :meth:`fit` learns. Hyperparameters stay fixed unless
-    :meth:`optimize_hyperparameters` is called (the paper fixes them, Sec. VIII).
+    ``__init__`` only stores settings; :meth:`fit` learns. Hyperparameters stay fixed (the paper
+    fixes them, Sec. VIII): :meth:`fit` always uses ``kernel`` and ``noise_std``.
+    :meth:`optimize_hyperparameters` fits with optimized values stored in ``kernel_`` and
+    ``noise_std_``; to keep them for later fits, build
+    ``GPRegression(gp.kernel_, gp.noise_std_, gp.prior_mean)``.
 
     Parameters
     ----------
