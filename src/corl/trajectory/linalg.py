@@ -16,6 +16,8 @@ factor : object whose ``solve(b)`` returns ``(H + shift I)^{-1} b`` for b: (n,)
 g      : gradient, (n,)
 u, z   : offsets from the ball's center of the current point and of the new point, (n,)
 nu     : multiplier of the ball ``||z|| <= radius`` (eps_max of Eq. 8)
+e, V   : eigenvalues (n,) and orthonormal eigenvectors (n, n) of a small dense H (n <= 16), in
+         whose basis the ball subproblem is a scalar secular equation
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ __all__ = ["SPDFactor", "DenseCholeskyFactor", "SparseLUFactor", "factorize_spd"
 
 _SECULAR_TOL = 1e-12  # relative accuracy of ||z|| = radius in the ball subproblem
 _SECULAR_MAX_ITER = 50
+_SMALL = 16  # dense H up to this size: one eigen-decomposition instead of repeated factorizations
 _WHAT = "Gauss-Newton matrix of the augmented Lagrangian"
 
 
@@ -119,6 +122,8 @@ def trust_region_step(
     d : (n,) the step.
     z : (n,) the new offset ``u + d``, exactly on the boundary, when the ball is active; else None.
     """
+    if type(H) is np.ndarray and H.ndim == 2 and H.shape[0] <= _SMALL and H.shape[0] == H.shape[1]:
+        return _small_trust_region_step(H, g, damping, u, radius)
     factor = factorize_spd(H, damping, what=_WHAT)
     d = -factor.solve(g)
     if u is None:
@@ -144,6 +149,90 @@ def trust_region_step(
     if zn > radius:
         z = z * (radius / zn)
     return z - u, z
+
+
+def _small_trust_region_step(
+    H: np.ndarray, g: np.ndarray, damping: float, u: np.ndarray | None, radius: float
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """:func:`trust_region_step` for a small dense H, in the eigenbasis ``H = V diag(e) V^T``.
+
+    There ``(H + s I)^{-1}`` is diagonal, so the Newton iteration on the ball multiplier runs on
+    Python floats: one eigen-decomposition replaces a factorization per iteration.
+    """
+    e, V = _symmetric_eig(H)
+    # Eigenvalues of the PSD H that rounding made negative count as 0; a zero shifted spectrum
+    # (no damping, H singular) gets the smallest jitter of numerics.cholesky instead.
+    shifted = [(ei if ei > 0.0 else 0.0) + damping for ei in e]
+    top = max(shifted)
+    floor = 1e-10 * (top if top > 0.0 else 1.0) if damping <= 0.0 else 0.0
+    shifted = [s if s > floor else floor for s in shifted] if floor else shifted
+    gt = np.dot(g, V).tolist()  # V^T g
+    if u is None:
+        return np.dot(V, [-gi / si for gi, si in zip(gt, shifted)]), None
+    ut = np.dot(u, V).tolist()  # V^T u
+    zt = [ui - gi / si for ui, gi, si in zip(ut, gt, shifted)]
+    zn = math.sqrt(sum(zi * zi for zi in zt))
+    if zn <= radius:
+        return np.dot(V, [zi - ui for zi, ui in zip(zt, ut)]), None
+    # Ball active: z(nu) = (H + (damping + nu) I)^{-1} b with b = (H + damping I) u - g; in the
+    # eigenbasis z_i = b_i / (s_i + nu). Newton on 1/||z(nu)|| - 1/radius (More & Sorensen 1983).
+    bt = [si * ui - gi for si, ui, gi in zip(shifted, ut, gt)]
+    nu = 0.0
+    for _ in range(_SECULAR_MAX_ITER):
+        zz = zq = 0.0  # ||z||^2 and z^T (H + shift I)^{-1} z
+        for bi, si in zip(bt, shifted):
+            zi = bi / (si + nu)
+            zz += zi * zi
+            zq += zi * zi / (si + nu)
+        nu += (zz / zq) * (math.sqrt(zz) - radius) / radius
+        if not math.isfinite(nu):
+            raise NumericalError("the trust-region multiplier became NaN or inf; check that H and g are finite")
+        zt = [bi / (si + nu) for bi, si in zip(bt, shifted)]
+        zn = math.sqrt(sum(zi * zi for zi in zt))
+        if zn - radius <= _SECULAR_TOL * radius:
+            break
+    z = np.dot(V, zt)
+    zn = math.sqrt(np.dot(z, z))
+    if zn > radius:
+        z = z * (radius / zn)
+    return z - u, z
+
+
+def _symmetric_eig(H: np.ndarray) -> tuple[list[float], np.ndarray]:
+    """Eigenvalues (list of n floats) and orthonormal eigenvectors V (n, n) of a symmetric H.
+
+    Closed forms for n <= 2 (the synthetic benchmark calls this thousands of times per run);
+    LAPACK ``syevd`` through ``np.linalg.eigh`` otherwise. Only the lower triangle is read.
+    """
+    n = H.shape[0]
+    if n == 2:
+        a, b, c = float(H[0, 0]), float(H[1, 0]), float(H[1, 1])
+        if not (math.isfinite(a) and math.isfinite(b) and math.isfinite(c)):
+            raise NumericalError("the Gauss-Newton matrix contains NaN or inf; check the Jacobians")
+        if b == 0.0:
+            return [a, c], np.eye(2)
+        half, rad = 0.5 * (a - c), math.hypot(0.5 * (a - c), b)
+        # Larger eigenvalue without cancellation; its eigenvector (rad + half, b) or (b, rad - half).
+        big = 0.5 * (a + c) + rad if a + c >= 0.0 else 0.5 * (a + c) - rad
+        small = (a * c - b * b) / big if big != 0.0 else 0.5 * (a + c) - rad
+        if a + c < 0.0:
+            big, small = small, big
+        x, y = (half + rad, b) if half >= 0.0 else (b, rad - half)
+        norm = math.hypot(x, y)
+        x, y = x / norm, y / norm
+        return [small, big], np.array([[-y, x], [x, y]])
+    if n == 1:
+        a = float(H[0, 0])
+        if not math.isfinite(a):
+            raise NumericalError("the Gauss-Newton matrix contains NaN or inf; check the Jacobians")
+        return [a], np.ones((1, 1))
+    try:
+        e, V = np.linalg.eigh(H)
+    except np.linalg.LinAlgError as err:
+        raise NumericalError(
+            f"eigen-decomposition of the {_WHAT} failed ({err}); check that the Jacobians are finite"
+        ) from err
+    return e.tolist(), V
 
 
 def _factorize_dense(H: np.ndarray, shift: float, what: str) -> DenseCholeskyFactor:
