@@ -179,12 +179,8 @@ def _small_trust_region_step(
     bt = [si * ui - gi for si, ui, gi in zip(shifted, ut, gt)]
     nu = 0.0
     for _ in range(_SECULAR_MAX_ITER):
-        zz = zq = 0.0  # ||z||^2 and z^T (H + shift I)^{-1} z
-        for bi, si in zip(bt, shifted):
-            zi = bi / (si + nu)
-            zz += zi * zi
-            zq += zi * zi / (si + nu)
-        nu += (zz / zq) * (math.sqrt(zz) - radius) / radius
+        zq = sum(zi * zi / (si + nu) for zi, si in zip(zt, shifted))  # z^T (H + shift I)^{-1} z
+        nu += (zn * zn / zq) * (zn - radius) / radius
         if not math.isfinite(nu):
             raise NumericalError("the trust-region multiplier became NaN or inf; check that H and g are finite")
         zt = [bi / (si + nu) for bi, si in zip(bt, shifted)]
@@ -206,7 +202,7 @@ def _symmetric_eig(H: np.ndarray) -> tuple[list[float], np.ndarray]:
     """
     n = H.shape[0]
     if n == 2:
-        a, b, c = float(H[0, 0]), float(H[1, 0]), float(H[1, 1])
+        (a, _), (b, c) = H.tolist()
         if not (math.isfinite(a) and math.isfinite(b) and math.isfinite(c)):
             raise NumericalError("the Gauss-Newton matrix contains NaN or inf; check the Jacobians")
         if b == 0.0:

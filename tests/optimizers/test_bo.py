@@ -1,0 +1,98 @@
+import math
+
+import numpy as np
+import pytest
+
+from corl.errors import InputError, StateError
+from corl.optimizers.bo import BOConfig, PIBUOptimizer, StopRule, UCBOptimizer
+from corl.optimizers.sal import SALConfig, SALOptimizer
+from corl.problem import Bounds, Outcome
+from corl.tasks.synthetic import distance_to_safe, return_of
+
+BOUNDS = Bounds([-math.pi], [math.pi])
+
+
+def evaluate(theta, with_distance=False):
+    t = float(theta[0])
+    if not -1.5 < t < 2.5:
+        return Outcome(False, None)
+    info = {}
+    margin = min(t + 1.5, 2.5 - t)
+    if with_distance and margin < 0.5:
+        info["boundary_distance"] = margin
+    return Outcome(True, return_of(t), info)
+
+
+def drive(opt, start, budget=60, with_distance=False):
+    opt.tell(np.array([start]), evaluate([start], with_distance))
+    while not opt.done and opt.n_evals < budget:
+        try:
+            x = opt.ask()
+        except StateError:
+            break
+        opt.tell(x, evaluate(x, with_distance))
+    return opt
+
+
+@pytest.mark.parametrize("start", [1.8, -1.2, 0.7])
+def test_pibu_finds_the_optimum_with_few_near_boundary_failures(start):
+    opt = drive(PIBUOptimizer(BOUNDS, seed=0), start)
+    x, r = opt.best
+    assert abs(x[0]) < 0.02 and r > 0.99
+    fails = opt.X_[~opt.success_, 0]
+    assert len(fails) <= 3
+    assert all(distance_to_safe(t) < 0.3 for t in fails)
+    assert opt.done  # stopped by its own rule, not the budget
+    assert opt.n_evals < 40
+
+
+def test_pibu_stop_rule_near_sampled():
+    opt = drive(PIBUOptimizer(BOUNDS, seed=0), 0.5)
+    assert opt.done
+    with pytest.raises(StateError):
+        opt.ask()
+
+
+def test_ask_twice_returns_the_pending_point_and_theta_out_of_bounds_is_rejected():
+    opt = PIBUOptimizer(BOUNDS, seed=0)
+    opt.tell(np.array([0.5]), evaluate([0.5]))
+    a = opt.ask()
+    np.testing.assert_array_equal(a, opt.ask())
+    with pytest.raises(InputError, match="outside the bounds"):
+        opt.tell(np.array([4.0]), Outcome(False))
+    with pytest.raises(InputError, match="shape"):
+        opt.tell(np.array([0.1, 0.2]), Outcome(False))
+    assert opt.n_evals == 1  # nothing was recorded by the bad tells
+
+
+def test_duplicate_points_are_fine():
+    opt = PIBUOptimizer(BOUNDS, seed=0)
+    for _ in range(5):
+        opt.tell(np.array([0.5]), evaluate([0.5]))
+    x = opt.ask()
+    assert np.all(np.isfinite(x))
+
+
+def test_ucb_models_failures_with_the_penalty_and_improves():
+    opt = drive(UCBOptimizer(BOUNDS, BOConfig(stop_rule=StopRule.SMALL_STEP, stop_distance=3e-3), seed=0), 1.8)
+    x, r = opt.best
+    assert abs(x[0]) < 0.05
+    assert (~opt.success_).sum() >= 2  # it does not care about safety
+
+
+def test_sal_uses_the_boundary_distance_and_stays_safe():
+    opt = drive(SALOptimizer(BOUNDS, SALConfig(), seed=0), 1.8, with_distance=True)
+    x, r = opt.best
+    assert abs(x[0]) < 0.05
+    fails = opt.X_[~opt.success_, 0]
+    assert len(fails) <= 2
+    assert np.any(opt.safety_ < SALConfig().critical_distance)  # distances were observed
+
+
+def test_configs_validate():
+    with pytest.raises(InputError):
+        BOConfig(stop_distance=-1)
+    with pytest.raises(InputError):
+        SALConfig(alpha=1.5)
+    with pytest.raises(ValueError):
+        BOConfig(stop_rule="sometimes")
