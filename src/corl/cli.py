@@ -83,58 +83,238 @@ def bench_synthetic(
     typer.echo(f"\n{len(names)} methods x {starts} starts in {wall:.1f} s; wrote {out / 'synthetic.json'}")
 
 
-@app.command("run")
-def run(
-    task: str = typer.Argument(..., help="'synthetic', or an import path 'package.module:make_task'"),
-    method: str = typer.Option("CORL+PIBU", help="method name (a row of Fig. 1)"),
-    seed: int = typer.Option(0, help="seed"),
-    out: Path = typer.Option(Path("results/run"), help="output folder for summary.json"),
-    quiet: bool = typer.Option(False, "--quiet", help="no progress output"),
-) -> None:
-    """One learning run; writes DIR/summary.json."""
-    import time
+def _open_store(path: Path, *, readonly: bool = False, create: bool = True):
+    from corl.store import RunStore
 
-    from corl.errors import CorlError
-    from corl.experiments.methods import METHODS, make_method
+    if not readonly and create:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    return RunStore(path, readonly=readonly, create=create and not readonly)
+
+
+def _summary(task, method: str, seed: int, learner, seconds: float) -> dict:
     from corl.learner import cost_of
-    from corl.tasks.registry import load_task
     from corl.versions import library_versions
 
-    if method not in METHODS:
-        _fail(f"unknown method '{method}'; choose from {', '.join(METHODS)}")
-    try:
-        the_task = load_task(task, seed=seed)
-        learner = make_method(method, the_task, seed=seed)
-    except CorlError as exc:
-        _fail(str(exc))
-    t0 = time.perf_counter()
-
-    def echo(p, o):
-        if not quiet:
-            r = "-" if o.return_ is None else f"{o.return_:+.4f}"
-            typer.echo(f"trial {p.index:4d}  round {p.round}  {p.step:14s} theta={p.theta.round(4).tolist()} "
-                       f"{'success' if o.success else 'FAILURE'}  R={r}", err=True)
-
-    try:
-        best = learner.run(callback=echo)
-    except CorlError as exc:
-        _fail(str(exc))
-    history = learner.history
-    J_first = history[0][1] if history else None
-    payload = {
-        "task": the_task.name, "method": method, "seed": seed,
+    history, best = learner.history, learner.best
+    return {
+        "task": task.name, "method": method, "seed": seed,
         "success": best is not None,
-        "best_theta": None if best is None else best.theta.tolist(),
+        "best_theta": None if best is None else [float(v) for v in best.theta],
         "best_return": None if best is None else best.return_,
-        "J_initial": cost_of(the_task, history[0][0].w) if J_first is not None else None,
+        "J_initial": cost_of(task, history[0][0].w) if history else None,
         "J_final": None if best is None else best.J,
         "trials": len(history),
         "failures": sum(not o.success for _, o in history),
-        "seconds": time.perf_counter() - t0,
+        "seconds": seconds,
         "versions": library_versions(),
     }
+
+
+@app.command("run")
+def run(
+    task: str = typer.Argument(..., help="'synthetic', or an import path 'package.module:make_task'"),
+    method: Optional[str] = typer.Option(None, help="method name, a row of Fig. 1 (default CORL+PIBU)"),
+    seed: Optional[int] = typer.Option(None, help="seed (default 0)"),
+    out: Path = typer.Option(Path("results/run"), help="output folder for summary.json"),
+    store: Optional[Path] = typer.Option(None, help="run store (default OUT/run.corl)"),
+    resume: bool = typer.Option(False, "--resume", help="continue the store's latest run exactly"),
+    quiet: bool = typer.Option(False, "--quiet", help="no progress output"),
+) -> None:
+    """One learning run, every trial committed to the store; writes OUT/summary.json."""
+    import time
+
+    from corl.errors import CorlError
+    from corl.experiments.methods import METHODS
+    from corl.session import StoredRun
+    from corl.tasks.registry import load_task
+
+    store_path = store or out / "run.corl"
+    t0 = time.perf_counter()
+    try:
+        db = _open_store(store_path)
+    except CorlError as exc:
+        _fail(str(exc))
+    with db:
+        try:
+            if resume:
+                info = db.latest_run()
+                if info is None:
+                    _fail(f"--resume: {store_path} holds no run; drop --resume to start one")
+                for flag, given, stored in (("--method", method, info.method), ("--seed", seed, info.seed)):
+                    if given is not None and given != stored:
+                        _fail(f"{flag} {given} differs from the run being resumed ({stored}); drop the flag")
+                method, seed = info.method, int(info.seed)
+                the_task = load_task(task, seed=seed)
+                session = StoredRun.open(db, the_task, info.id)
+            else:
+                method = method or "CORL+PIBU"
+                seed = 0 if seed is None else seed
+                if method not in METHODS:
+                    _fail(f"unknown method '{method}'; choose from {', '.join(METHODS)}")
+                the_task = load_task(task, seed=seed)
+                session = StoredRun.start(db, the_task, task_spec=task, method=method, seed=seed)
+        except CorlError as exc:
+            _fail(str(exc))
+
+        def echo(p, o):
+            if not quiet:
+                r = "-" if o.return_ is None else f"{o.return_:+.4f}"
+                typer.echo(f"trial {p.index:4d}  round {p.round}  {p.step:14s} "
+                           f"theta={np.round(p.theta, 4).tolist()} {'success' if o.success else 'FAILURE'}  R={r}",
+                           err=True)
+
+        import numpy as np
+
+        try:
+            session.run(the_task, callback=echo)
+        except CorlError as exc:
+            _fail(f"{exc} (the store {store_path} keeps every trial so far; resume with --resume)")
+        payload = _summary(the_task, method, seed, session.learner, time.perf_counter() - t0)
+        payload["store"] = str(store_path)
+        payload["run_id"] = session.run_id
     _write_json(out / "summary.json", payload)
     typer.echo(json.dumps({k: v for k, v in payload.items() if k != "versions"}, indent=2))
+
+
+@app.command("ask")
+def ask(
+    store: Path = typer.Option(..., help="run store"),
+    task: str = typer.Option(..., help="the task: 'synthetic' or 'package.module:make_task'"),
+    method: str = typer.Option("CORL+PIBU", help="method, used when the store has no run yet"),
+    seed: int = typer.Option(0, help="seed, used when the store has no run yet"),
+    rate: float = typer.Option(100.0, help="rate of the written trajectory (Hz)"),
+    out: Optional[Path] = typer.Option(None, help="folder for trial_<i>.csv/.npz (default: beside the store)"),
+) -> None:
+    """Write the next trial's trajectory (CSV and NPZ) and print its theta (real-robot loop)."""
+    import numpy as np
+
+    from corl.errors import CorlError
+    from corl.session import StoredRun, trajectory_of
+    from corl.tasks.registry import load_task
+
+    try:
+        with _open_store(store) as db:
+            info = db.latest_run()
+            the_task = load_task(task, seed=seed if info is None else int(info.seed))
+            if info is None:
+                session = StoredRun.start(db, the_task, task_spec=task, method=method, seed=seed)
+            else:
+                session = StoredRun.open(db, the_task, info.id)
+            if session.done:
+                _fail(f"run {session.run_id} has finished; 'corl status --store {store}' shows its result", code=1)
+            proposal = session.ask()
+            t, q = trajectory_of(the_task, proposal.w, rate)
+    except CorlError as exc:
+        _fail(str(exc))
+    folder = out or store.parent
+    folder.mkdir(parents=True, exist_ok=True)
+    stem = folder / f"trial_{proposal.index:04d}"
+    np.savez(stem.with_suffix(".npz"), t=t, q=q, w=proposal.w, theta=proposal.theta)
+    header = "t," + ",".join(f"q{j}" for j in range(q.shape[1]))
+    np.savetxt(stem.with_suffix(".csv"), np.column_stack([t, q]), delimiter=",", header=header, comments="")
+    typer.echo(json.dumps({"trial": proposal.index, "step": proposal.step, "round": proposal.round,
+                           "theta": proposal.theta.tolist(), "csv": str(stem.with_suffix(".csv")),
+                           "npz": str(stem.with_suffix(".npz"))}))
+
+
+@app.command("tell")
+def tell(
+    store: Path = typer.Option(..., help="run store"),
+    task: str = typer.Option(..., help="the task: 'synthetic' or 'package.module:make_task'"),
+    success: str = typer.Option(..., help="did the trial succeed: yes or no"),
+    return_: Optional[str] = typer.Option(None, "--return", help="the measured return (needed on success)"),
+) -> None:
+    """Record the outcome of the pending trial."""
+    import math
+
+    from corl.errors import CorlError
+    from corl.problem import Outcome
+    from corl.session import StoredRun
+    from corl.tasks.registry import load_task
+
+    flag = success.strip().lower()
+    if flag not in ("yes", "no"):
+        _fail(f"--success must be yes or no, got {success!r}")
+    value = None
+    if return_ is not None:
+        try:
+            value = float(return_)
+        except ValueError:
+            _fail(f"--return must be a number, got {return_!r}")
+        if not math.isfinite(value):
+            _fail(f"--return must be finite, got {return_!r}")
+    try:
+        outcome = Outcome(flag == "yes", value)
+        with _open_store(store, create=False) as db:
+            info = db.latest_run()
+            if info is None:
+                _fail(f"{store} holds no run; start one with 'corl ask'")
+            if db.pending(info.id) is None:
+                _fail("there is no pending trial to tell (each trial is told once): run 'corl ask' first")
+            session = StoredRun.open(db, load_task(task, seed=int(info.seed)), info.id)
+            session.tell(outcome)
+            typer.echo(json.dumps({"trial": len(session.history) - 1, "success": outcome.success,
+                                   "return": outcome.return_, "done": session.done}))
+    except CorlError as exc:
+        _fail(str(exc))
+
+
+@app.command("status")
+def status(store: Path = typer.Option(..., help="run store"),
+           run_id: Optional[int] = typer.Option(None, "--run", help="run id (default: latest)")) -> None:
+    """Show a run: its configuration, trials so far, failures and the best trial."""
+    from corl.errors import CorlError
+
+    try:
+        with _open_store(store, readonly=True) as db:
+            info = db.run(run_id) if run_id is not None else db.latest_run()
+            if info is None:
+                _fail(f"{store} holds no run yet", code=1)
+            trials = db.trials(info.id)
+    except CorlError as exc:
+        _fail(str(exc))
+    told = [t for t in trials if t.outcome is not None]
+    ok = [t for t in told if t.outcome.success]
+    best = max(ok, key=lambda t: t.outcome.return_, default=None)
+    typer.echo(f"run {info.id}: task {info.task}, method {info.method}, seed {info.seed}, {info.status.value}")
+    typer.echo(f"trials {len(trials)} (told {len(told)}, pending {len(trials) - len(told)}), "
+               f"failures {len(told) - len(ok)}")
+    if best is not None:
+        typer.echo(f"best return {best.outcome.return_:.6g} at trial {best.index}, "
+                   f"theta {[round(float(v), 6) for v in best.proposal.theta]}")
+
+
+@app.command("runs")
+def runs(store: Path = typer.Option(..., help="run store")) -> None:
+    """List a store's runs."""
+    from corl.errors import CorlError
+
+    try:
+        with _open_store(store, readonly=True) as db:
+            infos = db.runs()
+    except CorlError as exc:
+        _fail(str(exc))
+    typer.echo(f"{'id':>4} {'task':<12} {'method':<20} {'seed':>6} {'trials':>7} {'status':<9} created")
+    for r in infos:
+        typer.echo(f"{r.id:>4} {r.task:<12} {r.method:<20} {r.seed!s:>6} {r.n_trials:>7} {r.status.value:<9} {r.created}")
+
+
+@app.command("export")
+def export(store: Path = typer.Option(..., help="run store"),
+           out: Path = typer.Option(..., help="file to write: .csv or .parquet (w vectors go beside it as .npz)"),
+           run_id: Optional[int] = typer.Option(None, "--run", help="run id (default: latest)")) -> None:
+    """Export a run's trials for analysis."""
+    from corl.errors import CorlError
+
+    try:
+        with _open_store(store, readonly=True) as db:
+            info = db.run(run_id) if run_id is not None else db.latest_run()
+            if info is None:
+                _fail(f"{store} holds no run yet", code=1)
+            table, arrays = db.export(info.id, out)
+    except CorlError as exc:
+        _fail(str(exc))
+    typer.echo(f"wrote {table} and {arrays}")
 
 
 def main() -> None:

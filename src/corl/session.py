@@ -1,0 +1,150 @@
+"""A learner bound to a run store: nothing is handed out or accepted before it is on disk.
+
+:class:`StoredRun` wraps any ask/tell learner (CORL or a baseline):
+
+* ``ask`` commits the proposal before returning it;
+* ``tell`` commits the outcome before the learner sees it;
+* :meth:`StoredRun.open` rebuilds the learner from the run's configuration and replays every
+  stored trial (:func:`corl.store.replay`), so a run killed at any moment continues exactly where
+  it stopped: same trials, same result, nothing lost or repeated. A trial that was handed out but
+  never answered is handed out again.
+
+The task itself is never read from the store: it is named on the command line (a built-in name or
+an import path) and checked against the name recorded with the run.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from corl.errors import InputError, RolloutError, StateError
+from corl.problem import Outcome, Proposal, Task
+from corl.store import RunStatus, RunStore, StoreError, replay
+
+__all__ = ["StoredRun", "trajectory_of"]
+
+
+def _build(task: Task, method: str, seed: int):
+    from corl.experiments.methods import make_method
+
+    return make_method(method, task, seed=seed)
+
+
+class StoredRun:
+    """An ask/tell learner whose trials are committed to ``store`` under ``run_id``."""
+
+    def __init__(self, learner, store: RunStore, run_id: int) -> None:
+        self.learner = learner
+        self.store = store
+        self.run_id = run_id
+
+    # -- creating and reopening ----------------------------------------------------------------
+    @classmethod
+    def start(cls, store: RunStore, task: Task, *, task_spec: str, method: str, seed: int) -> "StoredRun":
+        """A new run of ``method`` on ``task`` (``task_spec`` is how the command line named it)."""
+        learner = _build(task, method, seed)
+        config = {"task_spec": task_spec, "task_name": task.name}
+        cfg = getattr(learner, "config", None)
+        if cfg is not None:
+            config["learner"] = _plain(asdict(cfg))
+        run_id = store.create_run(task=task.name, method=method, seed=seed, config=config)
+        return cls(learner, store, run_id)
+
+    @classmethod
+    def open(cls, store: RunStore, task: Task, run_id: int | None = None) -> "StoredRun":
+        """Reopen a run (default: the latest one) and replay its trials into a fresh learner."""
+        info = store.run(run_id) if run_id is not None else store.latest_run()
+        if info is None:
+            raise StoreError(f"{store.path} holds no run yet; start one with 'corl run' or 'corl ask --task ...'")
+        if info.task != task.name:
+            raise InputError(f"run {info.id} in {store.path} is for task '{info.task}', but the task given is "
+                             f"'{task.name}'; name the same task as when the run was started")
+        learner = _build(task, info.method, int(info.seed))
+        replay(learner, store, info.id)
+        return cls(learner, store, info.id)
+
+    # -- ask / tell ----------------------------------------------------------------------------
+    def ask(self) -> Proposal:
+        proposal = self.learner.ask()
+        self.store.add_proposal(self.run_id, proposal)  # committed before it is handed out
+        return proposal
+
+    def tell(self, outcome: Outcome) -> None:
+        pending = self.store.pending(self.run_id)
+        if pending is None:
+            raise StateError("there is no pending trial to tell: run 'corl ask' first")
+        if not isinstance(outcome, Outcome):
+            raise InputError(f"tell() needs a corl.Outcome, got {type(outcome).__name__}")
+        self.store.add_outcome(self.run_id, pending.index, outcome)  # committed before the learner moves on
+        try:
+            self.learner.tell(outcome)
+        finally:
+            if self.learner.done:
+                self.store.set_status(self.run_id, RunStatus.FINISHED)
+
+    @property
+    def done(self) -> bool:
+        return self.learner.done
+
+    @property
+    def best(self):
+        return self.learner.best
+
+    @property
+    def history(self):
+        return self.learner.history
+
+    def run(self, task: Task, *, max_trials: int | None = None,
+            callback: Callable[[Proposal, Outcome], None] | None = None):
+        """ask -> ``task.rollout`` -> tell until the learner is done (or ``max_trials``)."""
+        count = 0
+        while not self.done and (max_trials is None or count < max_trials):
+            try:
+                proposal = self.ask()
+            except StateError:
+                break
+            try:
+                outcome = task.rollout(proposal.w)
+            except Exception as exc:
+                raise RolloutError(f"the rollout of trial {proposal.index} raised {type(exc).__name__}: {exc}; "
+                                   "the trial stays pending in the store: fix the task and resume") from exc
+            self.tell(outcome)
+            count += 1
+            if callback is not None:
+                callback(proposal, outcome)
+        if self.done:
+            self.store.set_status(self.run_id, RunStatus.FINISHED)
+        return self.best
+
+
+def trajectory_of(task: Task, w: np.ndarray, rate: float) -> tuple[np.ndarray, np.ndarray]:
+    """Times (K,) and joint positions (K, Q) a robot should follow for ``w``.
+
+    Tasks with a reference trajectory provide ``task.reference(w, rate)``; for others the
+    parameters themselves are the "trajectory" (one row at time 0).
+    """
+    if rate <= 0:
+        raise InputError(f"rate must be positive (Hz), got {rate}")
+    reference = getattr(task, "reference", None)
+    if reference is None:
+        return np.zeros(1), np.asarray(w, dtype=float)[None, :]
+    t, q = reference(w, rate)
+    return np.asarray(t, dtype=float), np.asarray(q, dtype=float)
+
+
+def _plain(obj):
+    if isinstance(obj, dict):
+        return {k: _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, (np.floating, np.integer)):
+        return obj.item()
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if hasattr(obj, "value") and not isinstance(obj, (int, float, str, bool)):
+        return obj.value
+    return obj

@@ -1,0 +1,148 @@
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from corl.cli import app
+from corl.errors import InputError, StateError
+from corl.problem import Outcome
+from corl.session import StoredRun
+from corl.store import RunStore, StoreError
+from corl.tasks.synthetic import SyntheticTask
+
+CORL = [sys.executable, "-m", "corl.cli"]
+
+
+def trials_of(path):
+    with RunStore(path, readonly=True) as db:
+        run = db.latest_run()
+        return [(t.index, t.proposal.step, t.proposal.w.tobytes(), t.proposal.theta.tobytes(),
+                 None if t.outcome is None else (t.outcome.success, t.outcome.return_))
+                for t in db.trials(run.id)], run.status.value
+
+
+def test_stored_run_resumes_exactly(tmp_path):
+    task = SyntheticTask((0.2, 1.1))
+    with RunStore(tmp_path / "a.corl") as db:
+        ref = StoredRun.start(db, task, task_spec="synthetic", method="CORL+PIBU", seed=3)
+        ref.run(task)
+        expected = [(p.index, p.w.tobytes(), o.success) for p, o in ref.history]
+    with RunStore(tmp_path / "b.corl") as db:
+        first = StoredRun.start(db, task, task_spec="synthetic", method="CORL+PIBU", seed=3)
+        first.run(task, max_trials=57)
+        first.ask()  # handed out, never answered
+    with RunStore(tmp_path / "b.corl") as db:
+        again = StoredRun.open(db, task)
+        assert again.learner.ask().index == 57  # the pending trial is offered again
+        again.run(task)
+        got = [(p.index, p.w.tobytes(), o.success) for p, o in again.history]
+    assert got == expected
+
+
+def test_wrong_task_and_tell_without_pending(tmp_path):
+    task = SyntheticTask((0.2, 1.1))
+    with RunStore(tmp_path / "a.corl") as db:
+        s = StoredRun.start(db, task, task_spec="synthetic", method="CORL+PIBU", seed=0)
+        with pytest.raises(StateError):
+            s.tell(Outcome(True, 1.0))
+
+        class Other(SyntheticTask):
+            name = "other"
+
+        with pytest.raises(InputError, match="task"):
+            StoredRun.open(db, Other((0.2, 1.1)))
+
+
+def test_second_writer_is_refused_and_store_unchanged(tmp_path):
+    path = tmp_path / "s.corl"
+    runner = CliRunner()
+    assert runner.invoke(app, ["ask", "--store", str(path), "--task", "synthetic"]).exit_code == 0
+    before = path.read_bytes()
+    holder = subprocess.Popen([sys.executable, "-c",
+                               "import sys, time; from corl.store import RunStore; s = RunStore(sys.argv[1]); "
+                               "print('open', flush=True); time.sleep(30)", str(path)], stdout=subprocess.PIPE)
+    try:
+        assert holder.stdout.readline().strip() == b"open"
+        res = runner.invoke(app, ["tell", "--store", str(path), "--task", "synthetic", "--success", "yes",
+                                  "--return", "0.5"])
+        assert res.exit_code == 2 and "error" in res.output.lower()
+    finally:
+        holder.kill()
+        holder.wait()
+    assert trials_of(path)[0][0][4] is None  # the pending trial is still pending
+    assert before[:100] == path.read_bytes()[:100]
+
+
+def test_cli_ask_tell_errors_leave_store_as_it_was(tmp_path):
+    path = tmp_path / "s.corl"
+    runner = CliRunner()
+    res = runner.invoke(app, ["ask", "--store", str(path), "--task", "synthetic", "--seed", "1"])
+    assert res.exit_code == 0, res.output
+    asked = json.loads(res.output.strip().splitlines()[-1])
+    assert Path(asked["csv"]).exists() and Path(asked["npz"]).exists()
+    state = trials_of(path)
+    for args in (["--success", "maybe"], ["--success", "yes", "--return", "nan"],
+                 ["--success", "yes", "--return", "inf"], ["--success", "yes", "--return", "lots"],
+                 ["--success", "yes"]):
+        res = runner.invoke(app, ["tell", "--store", str(path), "--task", "synthetic", *args])
+        assert res.exit_code == 2, (args, res.output)
+        assert len(res.output.strip().splitlines()) == 1
+        assert trials_of(path) == state
+    ok = runner.invoke(app, ["tell", "--store", str(path), "--task", "synthetic", "--success", "yes", "--return", "0.2"])
+    assert ok.exit_code == 0, ok.output
+    twice = runner.invoke(app, ["tell", "--store", str(path), "--task", "synthetic", "--success", "yes", "--return", "0.2"])
+    assert twice.exit_code == 2 and "no pending trial" in twice.output
+    bad = tmp_path / "bad.corl"
+    bad.write_bytes(os.urandom(4096))
+    raw = bad.read_bytes()
+    res = runner.invoke(app, ["status", "--store", str(bad)])
+    assert res.exit_code == 2 and "damaged" in res.output and bad.read_bytes() == raw
+    res = runner.invoke(app, ["ask", "--store", str(path), "--task", "no.such.module:make_task"])
+    assert res.exit_code == 2 and "cannot import" in res.output
+    res = runner.invoke(app, ["export", "--store", str(path), "--out", str(tmp_path / "t.csv")])
+    assert res.exit_code == 0 and (tmp_path / "t.csv").read_text().count("\n") == 2
+
+
+@pytest.mark.slow
+def test_sigkill_at_random_moments_then_resume_equals_uninterrupted(tmp_path):
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
+    args = ["run", "synthetic", "--seed", "1", "--quiet"]
+    ref = tmp_path / "ref"
+    subprocess.run(CORL + args + ["--out", str(ref)], check=True, env=env, capture_output=True)
+    expected, status = trials_of(ref / "run.corl")
+    assert status == "finished" and len(expected) > 100
+    out = tmp_path / "killed"
+    rng = random.Random(7)
+    kills = 0
+    first = True
+    while kills < 20:
+        cmd = CORL + args + ["--out", str(out)] + ([] if first else ["--resume"])
+        proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        time.sleep(rng.uniform(0.4, 2.0))
+        if proc.poll() is not None:  # finished before the kill: start over from a fresh store
+            assert proc.returncode == 0, proc.stderr.read().decode()
+            break
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        kills += 1
+        if (out / "run.corl").exists():
+            first = False
+            partial, _ = trials_of(out / "run.corl")
+            assert partial == expected[: len(partial)] or (
+                partial[:-1] == expected[: len(partial) - 1] and partial[-1][4] is None)
+    res = subprocess.run(CORL + args + ["--out", str(out), "--resume"], env=env, capture_output=True)
+    assert res.returncode == 0, res.stderr.decode()
+    got, status = trials_of(out / "run.corl")
+    assert status == "finished"
+    assert got == expected
+    assert kills >= 10
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["trials"] == len(expected)
