@@ -331,3 +331,102 @@ def test_iteration_budget_stops_with_a_message():
     assert not result.converged
     assert "max_iterations" in result.status
     assert result.iterations == 1
+
+
+# -- small dense trust-region path and the manifold projection -----------------------------------------
+@pytest.mark.parametrize("n", [1, 2, 3, 5])
+def test_small_dense_trust_region_step_matches_the_factorized_one(n):
+    rng = np.random.default_rng(10 + n)
+    for _ in range(50):
+        J = rng.normal(size=(rng.integers(1, n + 2), n)) * 10 ** rng.uniform(-2, 2)
+        H, g = J.T @ J, rng.normal(size=n)
+        damping, radius = 10 ** rng.uniform(-8, 0) * np.abs(H).max(), 10 ** rng.uniform(-3, 1)
+        u = rng.normal(size=n)
+        u *= rng.uniform(0, 1) * radius / np.linalg.norm(u)
+        d, z = trust_region_step(H, g, damping, u, radius)  # eigenbasis path (n <= 16)
+        d_ref, z_ref = trust_region_step(sp.csc_matrix(H), g, damping, u, radius)  # factorizations
+        assert (z is None) == (z_ref is None)
+        np.testing.assert_allclose(d, d_ref, rtol=1e-7, atol=1e-9 * (np.linalg.norm(d_ref) + radius))
+
+
+def test_model_step_reports_the_step_norm_and_model_decrease():
+    from corl.trajectory.linalg import model_step
+
+    rng = np.random.default_rng(11)
+    for n in (2, 4, 20):
+        J = rng.normal(size=(n + 1, n))
+        H, g, u = J.T @ J, rng.normal(size=n), np.zeros(n)
+        d, z, dn, predicted = model_step(H, g, 1e-6, u, 0.05)
+        assert z is not None
+        assert dn == pytest.approx(np.linalg.norm(d), rel=1e-12)
+        assert predicted == pytest.approx(-(g @ d + 0.5 * d @ H @ d), rel=1e-9)
+
+
+@pytest.mark.parametrize("offset", [0.5, 1.0, 1.5, -1.5])
+def test_projection_far_along_the_angle_is_exact_and_cheap(offset):
+    # Closest point to w* on the ray at angle a + offset: cos(offset) along that ray. The multiplier
+    # grows like tan(offset), where the augmented Lagrangian alone needs dozens of evaluations.
+    a = 0.3
+    w_star = np.array([math.cos(a), math.sin(a)])
+    theta = a + offset
+    result = project(angle_constraint(theta), w_star)
+    assert result.converged, result.status
+    assert result.constraint_error <= 1e-6
+    expected = math.cos(offset) * np.array([math.cos(theta), math.sin(theta)])
+    np.testing.assert_allclose(result.w, expected, atol=1e-9)
+    assert result.evaluations <= 12
+    assert result.cost == pytest.approx(float(np.sum((expected - w_star) ** 2)), rel=1e-9)
+
+
+def test_projection_without_closest_point_still_reports_failure():
+    # Beyond pi/2 the infimum sits at the origin, where h is singular: not attained, not converged
+    # (the learner then reaches theta by continuation).
+    w_star = np.array([1.0, 0.0])
+    result = project(angle_constraint(2.0), w_star)
+    assert not result.converged
+    assert np.all(np.isfinite(result.w))
+
+
+def test_projection_on_a_curved_manifold_satisfies_kkt():
+    # Ellipse h = w1^2 / 4 + w2^2 - 1: the tangent steps must follow the curvature.
+    def ellipse(w):
+        return np.array([w[0] ** 2 / 4 + w[1] ** 2 - 1.0]), np.array([[w[0] / 2, 2 * w[1]]])
+
+    for w_star in ([0.3, 0.1], [3.0, 2.0], [-0.5, 1.7]):
+        w_star = np.asarray(w_star)
+        result = project(ellipse, w_star, config=SolverConfig.precise())
+        assert result.converged, result.status
+        h, Jh = ellipse(result.w)
+        assert abs(h[0]) <= 1e-10
+        normal = Jh[0] / np.linalg.norm(Jh[0])
+        offset = result.w - w_star
+        np.testing.assert_allclose(offset - (offset @ normal) * normal, 0.0, atol=1e-9)
+        # The multiplier nu solves 2 (w - w*) + Jh^T nu = 0.
+        np.testing.assert_allclose(2 * offset + Jh[0] * result.multipliers[0], 0.0, atol=1e-8)
+
+
+def test_projection_with_large_sparse_jacobian_matches_dense():
+    rng = np.random.default_rng(12)
+    n, q = 400, 5
+    A = sp.random(q, n, density=0.05, random_state=3, format="csr") + sp.eye(q, n, k=n - q, format="csr")
+    b, w_star = rng.normal(size=q), 0.1 * rng.normal(size=n)
+
+    def equalities(w, sparse):
+        Aw = A @ w
+        J = sp.diags(1 + 0.3 * np.cos(Aw)) @ A
+        return Aw + 0.3 * np.sin(Aw) - b, (J.tocsr() if sparse else J.toarray())
+
+    sparse = project(lambda w: equalities(w, True), w_star)
+    dense = project(lambda w: equalities(w, False), w_star)
+    assert sparse.converged and dense.converged, (sparse.status, dense.status)
+    assert sparse.constraint_error <= 1e-6
+    np.testing.assert_allclose(sparse.w, dense.w, atol=1e-9)
+
+
+def test_projection_call_is_fast_on_the_paper_problem():
+    w_star = np.array([math.cos(0.3), math.sin(0.3)])
+    start = time.perf_counter()
+    for k in range(50):
+        project(angle_constraint(0.3 + 1.5 * math.sin(k)), w_star)
+    per_call = (time.perf_counter() - start) / 50
+    assert per_call < 5e-3  # target 1 ms; loose bound so a busy machine does not fail the test

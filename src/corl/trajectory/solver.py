@@ -9,11 +9,20 @@ Alg. 1, step 2 maps a new theta to the closest trajectory (Eq. 18)::
 
     w^(i+1) = argmin_w ||w - w*||^2   s.t.  h(w) = 0.
 
-Both are solved by :func:`solve` (Eq. 18 through :func:`project`): an augmented Lagrangian outer
-loop on ``h`` (Nocedal & Wright, Numerical Optimization, Framework 17.3; Toussaint's KOMO [27])
-around Levenberg-Marquardt damped Gauss-Newton steps, each of which minimises the quadratic model
-exactly inside the ball (More & Sorensen's Newton iteration on the ball multiplier), so every
-iterate satisfies the trust-region constraint.
+Eq. 8 is solved by :func:`solve`: an augmented Lagrangian outer loop on ``h`` (Nocedal & Wright,
+Numerical Optimization, Framework 17.3; Toussaint's KOMO [27]) around Levenberg-Marquardt damped
+Gauss-Newton steps, each of which minimises the quadratic model exactly inside the ball (More &
+Sorensen's Newton iteration on the ball multiplier, :mod:`corl.trajectory.linalg`), so every
+iterate satisfies the trust-region constraint. The model itself (evaluation, gradient, Gauss-Newton
+Hessian) lives in :mod:`corl.trajectory.model`.
+
+Eq. 18 is solved by :func:`project`: restoration and tangent steps along ``h = 0``
+(:mod:`corl.trajectory.projection`), which converge fast where the augmented Lagrangian is only
+linear (large multipliers, since its Gauss-Newton Hessian drops ``lam^T d2h``), with :func:`solve`
+as the fallback.
+
+The learner calls :func:`solve` hundreds of times per run on 2-D problems, so the hot path avoids
+repeated validation and numpy calls on tiny arrays (see :mod:`corl.trajectory.model`).
 
 Glossary
 --------
@@ -32,7 +41,7 @@ u, z       : offsets from the center of the current point and of the trial point
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Callable, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
@@ -40,7 +49,20 @@ import scipy.sparse as sp
 
 from corl.errors import InputError, NumericalError
 from corl.numerics import as_vector
-from corl.trajectory.linalg import trust_region_step
+from corl.trajectory.linalg import model_step
+from corl.trajectory.model import (
+    _checked_pair,
+    _evaluate,
+    _gauss_newton,
+    _grams,
+    _lagrangian,
+    _max_abs,
+    _max_diagonal,
+    _non_finite,
+    _Point,
+    _sumsq,
+)
+from corl.trajectory.projection import project_on_manifold
 
 __all__ = [
     "LeastSquaresProblem",
@@ -56,9 +78,9 @@ __all__ = [
 Jacobian = Any  # np.ndarray or scipy.sparse matrix, (rows, n)
 
 _ACCEPT_RATIO = 1e-4  # accept a step when the actual decrease of L_A is >= this x the predicted one
-_NOISE = 8 * np.finfo(float).eps  # relative rounding level of L_A below which decreases are noise
 _DAMPING_FLOOR = 1e-15  # smallest damping, relative to the largest diagonal entry of H
 _STUCK_LIMIT = 2  # outer iterations without progress before declaring the constraints unsatisfiable
+_MANIFOLD_BUDGET = 60  # evaluations the manifold projection may use before project falls back on solve
 
 
 # ---------------------------------------------------------------------------------------------
@@ -260,99 +282,6 @@ class SolveResult:
 
 
 # ---------------------------------------------------------------------------------------------
-# Evaluation
-# ---------------------------------------------------------------------------------------------
-class _Point(NamedTuple):
-    """The problem evaluated at ``w``: residuals, constraints, Jacobians and their squared norms."""
-
-    w: np.ndarray
-    r: np.ndarray
-    Jr: Jacobian
-    h: np.ndarray
-    Jh: Jacobian
-    rr: float
-    hh: float
-
-
-def _checked_pair(pair, n: int, what: str, jac_name: str) -> tuple[np.ndarray, Jacobian]:
-    """Validate one ``(value, Jacobian)`` return (done on every call; cheap)."""
-    try:
-        value, jac = pair
-    except (TypeError, ValueError):
-        raise InputError(f"{what} must return a pair (value, Jacobian), got {type(pair).__name__}") from None
-    value = np.asarray(value, dtype=float)
-    if value.ndim != 1:
-        raise InputError(f"{what} returned a value of shape {value.shape}; expected a vector")
-    if type(jac) is not np.ndarray and not sp.issparse(jac):
-        jac = np.asarray(jac, dtype=float)
-    if jac.shape != (value.shape[0], n):
-        raise InputError(
-            f"{what} returned {jac_name} of shape {jac.shape}, expected ({value.shape[0]}, {n}) "
-            f"for a value of shape {value.shape} and w of shape ({n},)"
-        )
-    return value, jac
-
-
-def _evaluate(problem: LeastSquaresProblem, w: np.ndarray) -> _Point:
-    n = w.shape[0]
-    r, Jr = _checked_pair(problem.residuals(w), n, "residuals", "dr/dw")
-    h, Jh = _checked_pair(problem.equalities(w), n, "equalities", "dh/dw")
-    rr = float(r @ r)
-    hh = float(h @ h)
-    if not math.isfinite(rr):
-        raise NumericalError(
-            f"residuals returned NaN or inf at w = {np.array2string(w, precision=6, threshold=8)}; "
-            "check the cost features (a division by zero or an overflow) and the start"
-        )
-    if not math.isfinite(hh):
-        raise NumericalError(
-            f"equalities returned NaN or inf at w = {np.array2string(w, precision=6, threshold=8)}; "
-            "check the projection constraint h(w, theta) and its domain"
-        )
-    if (type(Jr) is not type(Jh)) and h.shape[0] > 0 and sp.issparse(Jr) != sp.issparse(Jh):  # mixed: go sparse
-        Jr, Jh = sp.csr_matrix(Jr), sp.csr_matrix(Jh)
-    return _Point(w, r, Jr, h, Jh, rr, hh)
-
-
-def _max_abs(h: np.ndarray) -> float:
-    """``max |h|`` (0 for an empty h); the ufunc reduce skips ndarray.max's Python wrapper."""
-    return float(np.maximum.reduce(np.abs(h))) if h.shape[0] else 0.0
-
-
-def _max_diag(J: Jacobian) -> float:
-    """Largest diagonal entry of ``J^T J`` (largest squared column norm), J: (rows, n)."""
-    if J.shape[0] == 0:
-        return 0.0
-    if type(J) is not np.ndarray:  # scipy.sparse
-        return float(J.multiply(J).sum(axis=0).max())
-    return float(np.maximum.reduce(np.add.reduce(J * J, axis=0)))
-
-
-def _lagrangian(pt: _Point, lam: np.ndarray, mu: float) -> tuple[float, float]:
-    """L_A = r^T r + lam^T h + mu h^T h, and the rounding noise of its evaluation."""
-    lin = float(lam @ pt.h)
-    return pt.rr + lin + mu * pt.hh, _NOISE * (pt.rr + abs(lin) + mu * pt.hh)
-
-
-def _gauss_newton(pt: _Point, lam: np.ndarray, mu: float) -> tuple[np.ndarray, Jacobian]:
-    """Gradient g (n,) and Gauss-Newton Hessian H (n, n) of L_A at ``pt``."""
-    # g = 2 Jr^T r + Jh^T (lam + 2 mu h);  H = 2 (Jr^T Jr + mu Jh^T Jh)  (second derivatives of r, h dropped)
-    g = 2.0 * (pt.Jr.T @ pt.r)
-    H = 2.0 * (pt.Jr.T @ pt.Jr)
-    if pt.h.shape[0]:
-        g += pt.Jh.T @ (lam + (2.0 * mu) * pt.h)
-        H = H + (2.0 * mu) * (pt.Jh.T @ pt.Jh)
-    if type(H) is not np.ndarray:  # scipy.sparse
-        H = H.tocsc()
-        g = np.asarray(g, dtype=float).ravel()
-    if not math.isfinite(float(g @ g)):
-        raise NumericalError(
-            "the gradient of the augmented Lagrangian is NaN or inf; check the Jacobians dr/dw and dh/dw"
-        )
-    return g, H
-
-
-# ---------------------------------------------------------------------------------------------
 # The solver
 # ---------------------------------------------------------------------------------------------
 _CONVERGED, _APPROXIMATE, _STALLED, _BUDGET = "converged", "approximate", "stalled", "budget"
@@ -374,6 +303,9 @@ class _Run:
         self.evaluations = 0
         self.outer = 0
         self.history: list[IterationRecord] = []
+        # center + z rounds by at most 1.12e-16 (||center|| + radius) in norm; recheck the distance
+        # of new points only when that could exceed 1e-12 radius.
+        self.recheck = center is not None and 2.3e-16 * (math.sqrt(_sumsq(center)) + radius) > 1e-12 * radius
 
     def evaluate(self, w: np.ndarray) -> _Point:
         self.evaluations += 1
@@ -381,11 +313,11 @@ class _Run:
 
     def record(self, pt: _Point, step_norm: float, damping: float, mu: float) -> None:
         self.history.append(
-            IterationRecord(self.iterations, self.outer, pt.rr, _max_abs(pt.h), step_norm, damping, mu, pt.w)
+            IterationRecord(self.iterations, self.outer, pt.rr, pt.err, step_norm, damping, mu, pt.w)
         )
 
     def set_damping_scale(self, H: Jacobian) -> None:
-        scale = float(np.maximum.reduce(H.diagonal()))
+        scale = _max_diagonal(H)
         scale = scale if scale > 0 and math.isfinite(scale) else 1.0
         self.damping = self.damping_start = self.config.damping_init * scale
         self.damping_floor = _DAMPING_FLOOR * scale
@@ -396,9 +328,12 @@ class _Run:
         if z is None:
             return w + d
         w_new = self.center + z
-        dist = math.sqrt((w_new - self.center) @ (w_new - self.center))
+        if not self.recheck:
+            return w_new
+        offset = w_new - self.center
+        dist = math.sqrt(_sumsq(offset))
         if dist > self.radius:  # rounding in center + z
-            w_new = self.center + (w_new - self.center) * (self.radius / dist)
+            w_new = self.center + offset * (self.radius / dist)
         return w_new
 
     def minimize_lagrangian(self, pt: _Point, lam: np.ndarray, mu: float, rtol: float) -> tuple[_Point, str]:
@@ -406,7 +341,9 @@ class _Run:
 
         The step is small when ``||d|| <= tol_step (1 + ||w||)``, or, with ``rtol > 0`` (an inexact
         solve for a multiplier update), when ``||d|| <= rtol`` times the first accepted step of this
-        call.
+        call. An inexact solve that ends feasible (``max|h| <= tol_constraint``) goes on as a tight
+        one with the same lam and mu (the polish before stopping), so it never returns
+        ``_APPROXIMATE`` at a feasible point.
         """
         cfg = self.config
         first = 0.0  # norm of the first accepted step of this call
@@ -421,17 +358,22 @@ class _Run:
             if self.iterations >= cfg.max_iterations:
                 return pt, _BUDGET
             u = None if self.center is None else pt.w - self.center
-            d, z = trust_region_step(H, g, self.damping, u, self.radius)
-            dn = math.sqrt(d @ d)
+            d, z, dn, predicted = model_step(H, g, self.damping, u, self.radius)  # predicted: decrease of L_A
             if not math.isfinite(dn):
+                _check_gradient(g)  # a non-finite step comes from g or from H
                 raise NumericalError(
                     "the Gauss-Newton step is NaN or inf; the Jacobians are probably non-finite or wildly scaled"
                 )
-            predicted = -(float(g @ d) + 0.5 * float(d @ (H @ d)))
-            if dn <= cfg.tol_step * (1.0 + math.sqrt(pt.w @ pt.w)) or predicted <= 0.0:
+            if dn <= cfg.tol_step * (1.0 + math.sqrt(_sumsq(pt.w))) or predicted <= 0.0:
                 return pt, _CONVERGED
             if dn <= rtol * first:
-                return pt, _APPROXIMATE
+                if pt.err > cfg.tol_constraint:
+                    return pt, _APPROXIMATE
+                # Feasible: polish with the same lam, mu (tight solve, damping reset as for a new L_A).
+                rtol, self.growth = 0.0, 2.0
+                if self.damping > self.damping_start:
+                    self.damping = self.damping_start
+                    continue  # recompute the step with the lower damping
             self.iterations += 1
             trial = self.evaluate(self.new_point(pt.w, d, z))
             L_trial, noise = _lagrangian(trial, lam, mu)
@@ -454,8 +396,20 @@ class _Run:
                     return pt, _STALLED
 
 
-def _prepare_ball(w: np.ndarray, center, radius) -> tuple[np.ndarray, np.ndarray | None, float]:
-    """Validate the trust region and move ``w`` into it; returns (w, center or None, radius)."""
+def _vector(x, n: int | None, name: str) -> np.ndarray:
+    """:func:`corl.numerics.as_vector`, with a fast path for a finite float vector of the right length."""
+    if type(x) is np.ndarray and x.dtype == np.float64 and x.ndim == 1 and (n is None or x.shape[0] == n):
+        # A finite sum of squares proves every entry finite (an overflow falls through to the full check).
+        if math.isfinite(_sumsq(x)):
+            return x
+    return as_vector(x, n, name=name)
+
+
+def _prepare_ball(w: np.ndarray, w_init, center, radius) -> tuple[np.ndarray, np.ndarray | None, float]:
+    """Validate the trust region and move ``w`` (a copy of ``w_init``) into it.
+
+    Returns (w, center or None, radius).
+    """
     try:
         radius = float(radius)
     except (TypeError, ValueError):
@@ -464,8 +418,11 @@ def _prepare_ball(w: np.ndarray, center, radius) -> tuple[np.ndarray, np.ndarray
         raise InputError(f"radius must be positive (eps_max of Eq. 8), got {radius!r}")
     if radius == math.inf:
         return w, None, radius
-    center = w.copy() if center is None else as_vector(center, w.shape[0], name="center")
-    dist = math.sqrt((w - center) @ (w - center))
+    if center is None or center is w_init:  # Alg. 1, step 1: the ball around the start
+        return w, w, radius  # (neither array is ever changed in place)
+    center = _vector(center, w.shape[0], "center")
+    offset = w - center
+    dist = math.sqrt(np.dot(offset, offset))
     if dist > radius:  # start outside the ball: use its closest point in the ball
         w = center + (w - center) * (radius / dist)
     return w, center, radius
@@ -504,12 +461,12 @@ def solve(
     NumericalError
         The problem returned NaN or inf.
     """
-    if not isinstance(config, SolverConfig):
+    if type(config) is not SolverConfig and not isinstance(config, SolverConfig):
         raise InputError(f"config must be a SolverConfig, got {type(config).__name__}")
-    w = as_vector(w_init, name="w_init").copy()
+    w = _vector(w_init, None, "w_init").copy()
     if w.shape[0] == 0:
         raise InputError("w_init is empty; the solver needs at least one parameter")
-    w, center, radius = _prepare_ball(w, center, radius)
+    w, center, radius = _prepare_ball(w, w_init, center, radius)
     run = _Run(problem, config, center, radius)
     pt = run.evaluate(w)
     run.record(pt, 0.0, 0.0, 0.0)
@@ -525,7 +482,8 @@ def _augmented_lagrangian(run: _Run, pt: _Point) -> tuple[_Point, np.ndarray, fl
     config = run.config
     q = pt.h.shape[0]
     lam = np.zeros(q)
-    c_cost, c_con = _max_diag(pt.Jr), _max_diag(pt.Jh)
+    _, JrJr, JhJh = pt.grams or _grams(pt)
+    c_cost, c_con = _max_diagonal(JrJr), (_max_diagonal(JhJh) if q else 0.0)  # maxdiag(Jr^T Jr), maxdiag(Jh^T Jh)
     mu0 = mu = config.mu_init * (c_cost / c_con if c_cost > 0 and c_con > 0 else 1.0)
     # Inexact inner solves while the multipliers are still moving; a tight one before stopping.
     rtol = config.inner_rtol if q else 0.0
@@ -533,11 +491,8 @@ def _augmented_lagrangian(run: _Run, pt: _Point) -> tuple[_Point, np.ndarray, fl
     stuck = 0
     for outer in range(config.max_outer_iterations):
         run.outer = outer
-        pt, inner = run.minimize_lagrangian(pt, lam, mu, rtol)
-        error = _max_abs(pt.h)
-        if inner == _APPROXIMATE and error <= config.tol_constraint:
-            pt, inner = run.minimize_lagrangian(pt, lam, mu, 0.0)  # polish with the same lam, mu
-            error = _max_abs(pt.h)
+        pt, inner = run.minimize_lagrangian(pt, lam, mu, rtol)  # polishes when it ends feasible
+        error = pt.err
         if inner == _BUDGET:
             return pt, lam, mu, False, (
                 f"not converged: max_iterations = {config.max_iterations} Gauss-Newton iterations used, "
@@ -550,8 +505,8 @@ def _augmented_lagrangian(run: _Run, pt: _Point) -> tuple[_Point, np.ndarray, fl
             )
         violation = math.sqrt(pt.hh)
         # No progress: w stopped moving and ||h|| stopped shrinking (a local minimum of ||h||^2).
-        moved = math.sqrt((pt.w - previous_w) @ (pt.w - previous_w))
-        still = moved <= config.tol_step * (1.0 + math.sqrt(pt.w @ pt.w))
+        moved = math.sqrt(_sumsq(pt.w - previous_w))
+        still = moved <= config.tol_step * (1.0 + math.sqrt(_sumsq(pt.w)))
         stuck = stuck + 1 if still and violation >= 0.999 * previous_violation else 0
         shrunk = violation <= config.violation_decrease * previous_violation
         if stuck >= _STUCK_LIMIT or (not shrunk and mu * config.mu_growth > config.mu_max * mu0):
@@ -563,15 +518,15 @@ def _augmented_lagrangian(run: _Run, pt: _Point) -> tuple[_Point, np.ndarray, fl
         previous_w, previous_violation = pt.w, violation
     return pt, lam, mu, False, (
         f"not converged: max_outer_iterations = {config.max_outer_iterations} multiplier updates used, "
-        f"max|h| = {_max_abs(pt.h):.2e}; raise max_outer_iterations or mu_growth"
+        f"max|h| = {pt.err:.2e}; raise max_outer_iterations or mu_growth"
     )
 
 
 def _infeasible_status(pt: _Point, run: _Run, error: float, mu: float, stuck: bool) -> str:
     where = ""
     if run.center is not None:
-        dist = math.sqrt((pt.w - run.center) @ (pt.w - run.center))
-        if dist >= run.radius * (1 - 1e-9):
+        offset = pt.w - run.center
+        if math.sqrt(_sumsq(offset)) >= run.radius * (1 - 1e-9):
             where = f" inside the trust region of radius {run.radius:g} (active)"
     why = (
         "w stopped moving (a local minimum of ||h||^2, or a point where dh/dw degenerates)"
@@ -588,12 +543,12 @@ def _infeasible_status(pt: _Point, run: _Run, error: float, mu: float, stuck: bo
 def _result(pt: _Point, run: _Run, lam: np.ndarray, mu: float, converged: bool, status: str) -> SolveResult:
     active = False
     if run.center is not None:
-        dist = math.sqrt((pt.w - run.center) @ (pt.w - run.center))
-        active = dist >= run.radius * (1 - 1e-9)
+        offset = pt.w - run.center
+        active = math.sqrt(_sumsq(offset)) >= run.radius * (1 - 1e-9)
     return SolveResult(
         w=pt.w,
         cost=pt.rr,
-        constraint_error=_max_abs(pt.h),
+        constraint_error=pt.err,
         multipliers=lam + (2.0 * mu) * pt.h,  # first-order estimate: grad J + Jh^T (lam + 2 mu h) = 0
         converged=converged,
         status=status,
@@ -611,6 +566,11 @@ def project(equalities, w_star, *, w_init=None, config: SolverConfig = DEFAULT_C
     ``argmin_w ||w - w*||^2  s.t.  h(w) = 0``; Alg. 1, step 2 uses it to turn a new theta into a
     trajectory near the last optimum ``w*``.
 
+    It first follows the manifold ``h = 0`` (:mod:`corl.trajectory.projection`: min-norm
+    restoration and tangent steps, superlinear where the augmented Lagrangian is only linear);
+    when that gives up - a singular ``dh/dw``, a failed restoration, no descent - it falls back on
+    :func:`solve` with residuals ``w - w*`` from the same start.
+
     Parameters
     ----------
     equalities : callable ``w (n,) -> (h (q,), dh/dw (q, n))``, or an object with an
@@ -622,12 +582,51 @@ def project(equalities, w_star, *, w_init=None, config: SolverConfig = DEFAULT_C
     Returns
     -------
     SolveResult
-        ``cost`` is ``||w - w*||^2``. The residual Jacobian is a sparse identity when ``dh/dw``
-        is sparse, a dense one otherwise.
+        ``cost`` is ``||w - w*||^2``. In the fallback, the residual Jacobian is a sparse identity
+        when ``dh/dw`` is sparse, a dense one otherwise.
     """
+    if type(config) is not SolverConfig and not isinstance(config, SolverConfig):
+        raise InputError(f"config must be a SolverConfig, got {type(config).__name__}")
     w_star = as_vector(w_star, name="w_star")
     fn = getattr(equalities, "equalities", equalities)
     if not callable(fn):
         raise InputError(f"equalities must be a callable w -> (h, dh/dw) or a problem, got {equalities!r}")
     start = w_star if w_init is None else as_vector(w_init, w_star.shape[0], name="w_init")
-    return solve(_ProjectionProblem(fn, w_star), start, config=config)
+    n = w_star.shape[0]
+    calls = [0]
+
+    def evaluate(w: np.ndarray) -> tuple[np.ndarray, Jacobian, float]:
+        calls[0] += 1
+        h, Jh = _checked_pair(fn(w), n, "equalities", "dh/dw")
+        if not math.isfinite(_sumsq(h)):
+            raise _non_finite("equalities", w, "check the projection constraint h(w, theta) and its domain")
+        return h, Jh, _max_abs(h)
+
+    found = project_on_manifold(
+        evaluate,
+        w_star,
+        start.copy(),
+        tol_constraint=config.tol_constraint,
+        tol_step=config.tol_step,
+        max_evaluations=min(config.max_iterations, _MANIFOLD_BUDGET),
+    )
+    if found is None or found.error > config.tol_constraint:
+        result = solve(_ProjectionProblem(fn, w_star), start, config=config)
+        return replace(result, evaluations=result.evaluations + calls[0])  # count the attempt too
+    history = tuple(IterationRecord(k - 1, 0, cost, err, step, 0.0, 0.0, w) for k, cost, err, step, w in found.history)
+    return SolveResult(
+        w=found.w,
+        cost=found.cost,
+        constraint_error=found.error,
+        multipliers=found.multipliers,
+        converged=True,
+        status=(
+            f"converged: the tangent step along h(w) = 0 is below tol_step and max|h| = {found.error:.2e} "
+            f"<= tol_constraint = {config.tol_constraint:g}"
+        ),
+        iterations=found.evaluations - 1,
+        outer_iterations=1,
+        evaluations=found.evaluations,
+        trust_region_active=False,
+        history=history,
+    )

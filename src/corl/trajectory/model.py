@@ -1,0 +1,216 @@
+"""The Gauss-Newton model of the augmented Lagrangian for :mod:`corl.trajectory.solver`.
+
+One evaluation of the problem (:class:`_Point`) and the gradient and Gauss-Newton Hessian of
+
+    L_A(w) = r^T r + lam^T h + mu h^T h                 (N&W Framework 17.3, around Eq. 8)
+
+built from it. Tiny dense problems (n = 2, a few rows: the synthetic benchmark, solved thousands
+of times per run) are handled on Python floats, where numpy's per-call overhead would cost more
+than the arithmetic; everything else on ndarrays or scipy.sparse.
+
+Glossary
+--------
+w          : decision variables, (n,)
+r, Jr      : cost residuals (p,) and their Jacobian dr/dw (p, n)
+h, Jh      : equality constraints (q,) and their Jacobian dh/dw (q, n)
+lam, mu    : multiplier estimate (q,) and penalty weight of L_A
+g, H       : gradient (n,) and Gauss-Newton Hessian (n, n) of L_A
+grams      : per-point cache ``(2 Jr^T r, 2 Jr^T Jr, 2 Jh^T Jh)``
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from corl.errors import InputError, NumericalError
+
+Jacobian = Any  # np.ndarray or scipy.sparse matrix, (rows, n)
+
+NOISE = 8 * np.finfo(float).eps  # relative rounding level of L_A below which decreases are noise
+_SMALL = 32  # vectors up to this length are reduced in Python (cheaper than a ufunc call)
+
+
+class _Point:
+    """The problem evaluated at ``w``: residuals, constraints, Jacobians and their squared norms.
+
+    ``err`` is ``max |h|``; ``grams`` caches ``(2 Jr^T r, 2 Jr^T Jr, 2 Jh^T Jh)`` for
+    :func:`_gauss_newton` (filled on first use, reused when only lam or mu change).
+    """
+
+    __slots__ = ("w", "r", "Jr", "h", "Jh", "rr", "hh", "err", "grams")
+
+    def __init__(self, w, r, Jr, h, Jh, rr: float, hh: float) -> None:
+        self.w, self.r, self.Jr, self.h, self.Jh, self.rr, self.hh = w, r, Jr, h, Jh, rr, hh
+        self.err = _max_abs(h)
+        self.grams: tuple | None = None
+
+
+def _checked_pair(pair, n: int, what: str, jac_name: str) -> tuple[np.ndarray, Jacobian]:
+    """Validate one ``(value, Jacobian)`` return (done on every call; cheap)."""
+    try:
+        value, jac = pair
+    except (TypeError, ValueError):
+        raise InputError(f"{what} must return a pair (value, Jacobian), got {type(pair).__name__}") from None
+    value = np.asarray(value, dtype=float)
+    if value.ndim != 1:
+        raise InputError(f"{what} returned a value of shape {value.shape}; expected a vector")
+    if type(jac) is not np.ndarray and not sp.issparse(jac):
+        jac = np.asarray(jac, dtype=float)
+    if jac.shape != (value.shape[0], n):
+        raise InputError(
+            f"{what} returned {jac_name} of shape {jac.shape}, expected ({value.shape[0]}, {n}) "
+            f"for a value of shape {value.shape} and w of shape ({n},)"
+        )
+    return value, jac
+
+
+def _non_finite(what: str, w: np.ndarray, hint: str) -> NumericalError:
+    return NumericalError(
+        f"{what} returned NaN or inf at w = {np.array2string(w, precision=6, threshold=8)}; {hint}"
+    )
+
+
+def _evaluate(problem, w: np.ndarray) -> _Point:
+    n = w.shape[0]
+    r, Jr = _checked_pair(problem.residuals(w), n, "residuals", "dr/dw")
+    h, Jh = _checked_pair(problem.equalities(w), n, "equalities", "dh/dw")
+    rr = _sumsq(r)
+    hh = _sumsq(h)
+    if not math.isfinite(rr):
+        raise _non_finite("residuals", w, "check the cost features (a division by zero or an overflow) and the start")
+    if not math.isfinite(hh):
+        raise _non_finite("equalities", w, "check the projection constraint h(w, theta) and its domain")
+    if (type(Jr) is not type(Jh)) and h.shape[0] > 0 and sp.issparse(Jr) != sp.issparse(Jh):  # mixed: go sparse
+        Jr, Jh = sp.csr_matrix(Jr), sp.csr_matrix(Jh)
+    return _Point(w, r, Jr, h, Jh, rr, hh)
+
+
+def _sumsq(v: np.ndarray) -> float:
+    """``v^T v`` for v: (k,); a Python loop for short vectors (cheaper than a numpy call)."""
+    if v.shape[0] <= _SMALL:
+        total = 0.0
+        for x in v.tolist():
+            total += x * x
+        return total
+    return float(np.dot(v, v))
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> float:
+    """``a^T b`` for a, b: (k,), as :func:`_sumsq`."""
+    if a.shape[0] <= _SMALL:
+        total = 0.0
+        for x, y in zip(a.tolist(), b.tolist()):
+            total += x * y
+        return total
+    return float(np.dot(a, b))
+
+
+def _max_abs(h: np.ndarray) -> float:
+    """``max |h|`` (0 for an empty h)."""
+    q = h.shape[0]
+    if q <= _SMALL:
+        return max(map(abs, h.tolist())) if q else 0.0
+    return float(np.maximum.reduce(np.abs(h)))
+
+
+def _max_diagonal(G) -> float:
+    """Largest diagonal entry of a square G: ndarray, scipy.sparse, or for a tiny problem the
+    packed 2 x 2 ``(G00, G01, G11)`` or nested list ``[[G00, G01], [G01, G11]]``; 0 when empty."""
+    if type(G) is tuple:
+        return G[0] if G[0] >= G[2] else G[2]
+    if type(G) is list:  # the nested 2 x 2 H that _gauss_newton returns for a tiny problem
+        return G[0][0] if G[0][0] >= G[1][1] else G[1][1]
+    diag = G.diagonal()
+    if diag.shape[0] <= _SMALL:
+        return max(diag.tolist(), default=0.0)
+    return float(np.maximum.reduce(diag))
+
+
+def _grams(pt: _Point) -> tuple:
+    """``(2 Jr^T r, 2 Jr^T Jr, 2 Jh^T Jh)`` at ``pt`` (the last is None without constraints).
+
+    For tiny problems (:func:`_is_tiny`) Python floats: ``(g0, g1)`` and packed symmetric
+    ``(G00, G01, G11)``; arrays otherwise.
+    """
+    Jr, Jh, q = pt.Jr, pt.Jh, pt.h.shape[0]
+    if type(Jr) is not np.ndarray:  # scipy.sparse
+        grams = (
+            np.asarray(Jr.T @ (2.0 * pt.r), dtype=float).ravel(),
+            2.0 * (Jr.T @ Jr),
+            2.0 * (Jh.T @ Jh) if q else None,
+        )
+    elif _is_tiny(Jr, Jh):
+        g0 = g1 = a00 = a01 = a11 = 0.0
+        for (j0, j1), rk in zip(Jr.tolist(), pt.r.tolist()):
+            g0 += j0 * rk
+            g1 += j1 * rk
+            a00 += j0 * j0
+            a01 += j0 * j1
+            a11 += j1 * j1
+        JhJh = None
+        if q:
+            c00 = c01 = c11 = 0.0
+            for j0, j1 in Jh.tolist():
+                c00 += j0 * j0
+                c01 += j0 * j1
+                c11 += j1 * j1
+            JhJh = (2.0 * c00, 2.0 * c01, 2.0 * c11)
+        grams = ((2.0 * g0, 2.0 * g1), (2.0 * a00, 2.0 * a01, 2.0 * a11), JhJh)
+    else:  # np.dot skips the matmul dispatch, which dominates for small n
+        JrT = Jr.T
+        grams = (np.dot(JrT, 2.0 * pt.r), np.dot(JrT, 2.0 * Jr), np.dot(Jh.T, 2.0 * Jh) if q else None)
+    pt.grams = grams
+    return grams
+
+
+def _is_tiny(Jr: np.ndarray, Jh: np.ndarray) -> bool:
+    """Dense problems with n = 2 and at most 8 rows (the synthetic benchmark): Gauss-Newton on
+    Python floats, since numpy's per-call overhead costs more than the arithmetic there, and the
+    2 x 2 trust-region step has a closed form (:func:`corl.trajectory.linalg.model_step`)."""
+    return Jr.shape[1] == 2 and Jr.shape[0] + Jh.shape[0] <= 8
+
+
+def _lagrangian(pt: _Point, lam: np.ndarray, mu: float) -> tuple[float, float]:
+    """L_A = r^T r + lam^T h + mu h^T h, and the rounding noise of its evaluation."""
+    lin = _dot(lam, pt.h)
+    return pt.rr + lin + mu * pt.hh, NOISE * (pt.rr + abs(lin) + mu * pt.hh)
+
+
+def _gauss_newton(pt: _Point, lam: np.ndarray, mu: float) -> tuple[np.ndarray, Jacobian]:
+    """Gradient g (n,) and Gauss-Newton Hessian H (n, n) of L_A at ``pt``.
+
+    For tiny dense problems (:func:`_is_tiny`) g is a list and H a nested 2 x 2 list of floats,
+    which :func:`corl.trajectory.linalg.model_step` takes as they are.
+    """
+    # g = 2 Jr^T r + Jh^T (lam + 2 mu h);  H = 2 (Jr^T Jr + mu Jh^T Jh)  (second derivatives of r, h dropped)
+    g, H, JhJh = pt.grams or _grams(pt)
+    if type(H) is tuple:  # tiny dense problem: Python floats, H packed as (H00, H01, H11)
+        g0, g1 = g
+        if JhJh is not None:
+            two_mu = 2.0 * mu
+            for lam_k, h_k, (j0, j1) in zip(lam.tolist(), pt.h.tolist(), pt.Jh.tolist()):
+                c = lam_k + two_mu * h_k
+                g0 += c * j0
+                g1 += c * j1
+            H = (H[0] + mu * JhJh[0], H[1] + mu * JhJh[1], H[2] + mu * JhJh[2])
+        return [g0, g1], [[H[0], H[1]], [H[1], H[2]]]
+    if JhJh is not None:
+        lam_mu = lam + (2.0 * mu) * pt.h
+        g = g + (np.dot(lam_mu, pt.Jh) if type(pt.Jh) is np.ndarray else pt.Jh.T @ lam_mu)
+        H = H + mu * JhJh
+    if type(H) is not np.ndarray:  # scipy.sparse
+        H = H.tocsc()
+        g = np.asarray(g, dtype=float).ravel()
+    return g, H
+
+
+def _check_gradient(g: np.ndarray) -> None:
+    """Raise a NumericalError naming the Jacobians when the gradient g (n,) is NaN or inf."""
+    if not math.isfinite(float(np.dot(g, g))):
+        raise NumericalError(
+            "the gradient of the augmented Lagrangian is NaN or inf; check the Jacobians dr/dw and dh/dw"
+        )
