@@ -1,9 +1,11 @@
 """Shifted symmetric positive definite solves for the Gauss-Newton solver of Eq. 8.
 
 Every linear solve of :mod:`corl.trajectory.solver` goes through :func:`factorize_spd`, so the
-choice of factorization lives in one place: dense Cholesky for ``np.ndarray`` and a sparse LU on
-CSC for ``scipy.sparse`` input. A banded Cholesky for long trajectories (n >= 1000, k-order Markov
-structure of Eq. 7) can be added here without touching the solver. No dense inverse is formed.
+choice of factorization lives in one place: dense Cholesky for ``np.ndarray``; banded Cholesky
+(LAPACK ``dpbtrf``, :mod:`corl.trajectory.banded`) for a :class:`BandedSPD` and for
+``scipy.sparse`` input whose bandwidth - in the natural ordering or after reverse Cuthill-McKee -
+is below a quarter of n (long trajectories, k-order Markov structure of Eq. 7); a sparse LU on CSC
+for other sparse input. No dense inverse is formed.
 :func:`trust_region_step` builds the solver's damped Gauss-Newton step inside the ball of Eq. 8
 from these factorizations.
 
@@ -32,11 +34,14 @@ from scipy.sparse.linalg import splu
 
 from corl.errors import InputError, NumericalError
 from corl.numerics import cholesky
+from corl.trajectory.banded import BandedCholeskyFactor, BandedSPD, banded_cholesky, banded_ordering
 
 __all__ = [
     "SPDFactor",
     "DenseCholeskyFactor",
     "SparseLUFactor",
+    "BandedCholeskyFactor",
+    "BandedSPD",
     "factorize_spd",
     "solve_spd",
     "trust_region_step",
@@ -86,7 +91,9 @@ def factorize_spd(H, shift: float = 0.0, *, what: str = "Gauss-Newton matrix") -
 
     Parameters
     ----------
-    H : (n, n) ndarray or scipy.sparse matrix; only its lower triangle is read in the dense case.
+    H : (n, n) ndarray, scipy.sparse matrix or :class:`BandedSPD`; only its lower triangle is read in
+        the dense and banded cases. Sparse input with a small bandwidth (natural or reverse
+        Cuthill-McKee ordering, ``(u + 1) * 4 <= n``) is factorized as a band, else by SuperLU.
     shift : non-negative multiple of the identity to add (damping).
     what : name used in error messages.
 
@@ -100,6 +107,8 @@ def factorize_spd(H, shift: float = 0.0, *, what: str = "Gauss-Newton matrix") -
         If the shifted matrix is not positive definite even after the jitter ladder of
         :func:`corl.numerics.cholesky` (dense), or is exactly singular (sparse).
     """
+    if type(H) is BandedSPD:
+        return banded_cholesky(H.ab, shift, what=what)
     if type(H) is not np.ndarray and sp.issparse(H):  # the type test keeps small dense calls fast
         return _factorize_sparse(H, shift, what)
     return _factorize_dense(H, shift, what)
@@ -358,10 +367,14 @@ def _factorize_dense(H: np.ndarray, shift: float, what: str) -> DenseCholeskyFac
     return DenseCholeskyFactor(np.asfortranarray(L))
 
 
-def _factorize_sparse(H, shift: float, what: str) -> SparseLUFactor:
+def _factorize_sparse(H, shift: float, what: str) -> SparseLUFactor | BandedCholeskyFactor:
     n = H.shape[0]
     if H.shape != (n, n):
         raise InputError(f"{what} must be square, got shape {H.shape}")
+    perm, u = banded_ordering(H)
+    if (u + 1) * 4 <= n:  # banded Cholesky: O(n u^2), cheaper than SuperLU's fill-in here
+        A = H if perm is None else sp.csr_matrix(H)[perm][:, perm]
+        return banded_cholesky(BandedSPD.from_sparse(A, u).ab, shift, perm=perm, what=what)
     A = sp.csc_matrix(H, dtype=float)
     if shift:
         A = (A + shift * sp.identity(n, format="csc")).tocsc()

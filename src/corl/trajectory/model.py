@@ -16,6 +16,13 @@ h, Jh      : equality constraints (q,) and their Jacobian dh/dw (q, n)
 lam, mu    : multiplier estimate (q,) and penalty weight of L_A
 g, H       : gradient (n,) and Gauss-Newton Hessian (n, n) of L_A
 grams      : per-point cache ``(2 Jr^T r, 2 Jr^T Jr, 2 Jh^T Jh)``
+JrJr       : ``2 Jr^T Jr`` given by the problem when Jr is constant (linear features, Eq. 9), or None
+
+A problem whose residual Jacobian does not depend on w may offer ``cost_hessian()``, returning
+the constant ``2 Jr^T Jr`` (ndarray, scipy.sparse or :class:`~corl.trajectory.banded.BandedSPD`)
+or None; it is then not recomputed at every iterate. With a banded one, ``2 Jh^T Jh`` is kept as a
+:class:`~corl.trajectory.banded.SupportGram` on the few columns the constraints touch, and H stays
+banded (factorized by LAPACK ``dpbtrf``).
 """
 
 from __future__ import annotations
@@ -27,6 +34,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from corl.errors import InputError, NumericalError
+from corl.trajectory.banded import BandedSPD, SupportGram
 
 Jacobian = Any  # np.ndarray or scipy.sparse matrix, (rows, n)
 
@@ -41,12 +49,13 @@ class _Point:
     :func:`_gauss_newton` (filled on first use, reused when only lam or mu change).
     """
 
-    __slots__ = ("w", "r", "Jr", "h", "Jh", "rr", "hh", "err", "grams")
+    __slots__ = ("w", "r", "Jr", "h", "Jh", "rr", "hh", "err", "grams", "JrJr")
 
-    def __init__(self, w, r, Jr, h, Jh, rr: float, hh: float) -> None:
+    def __init__(self, w, r, Jr, h, Jh, rr: float, hh: float, JrJr=None) -> None:
         self.w, self.r, self.Jr, self.h, self.Jh, self.rr, self.hh = w, r, Jr, h, Jh, rr, hh
         self.err = _max_abs(h)
         self.grams: tuple | None = None
+        self.JrJr = JrJr
 
 
 def _checked_pair(pair, n: int, what: str, jac_name: str) -> tuple[np.ndarray, Jacobian]:
@@ -86,7 +95,8 @@ def _evaluate(problem, w: np.ndarray) -> _Point:
         raise _non_finite("equalities", w, "check the projection constraint h(w, theta) and its domain")
     if (type(Jr) is not type(Jh)) and h.shape[0] > 0 and sp.issparse(Jr) != sp.issparse(Jh):  # mixed: go sparse
         Jr, Jh = sp.csr_matrix(Jr), sp.csr_matrix(Jh)
-    return _Point(w, r, Jr, h, Jh, rr, hh)
+    constant = getattr(problem, "cost_hessian", None)
+    return _Point(w, r, Jr, h, Jh, rr, hh, None if constant is None else constant())
 
 
 def _sumsq(v: np.ndarray) -> float:
@@ -137,7 +147,13 @@ def _grams(pt: _Point) -> tuple:
     ``(G00, G01, G11)``; arrays otherwise.
     """
     Jr, Jh, q = pt.Jr, pt.Jh, pt.h.shape[0]
-    if type(Jr) is not np.ndarray:  # scipy.sparse
+    if pt.JrJr is not None:  # constant 2 Jr^T Jr from the problem (linear cost features)
+        JhJh = None
+        if q:
+            JhJh = SupportGram.from_jacobian(Jh, 2.0) if type(pt.JrJr) is BandedSPD else 2.0 * (Jh.T @ Jh)
+        g = Jr.T @ (2.0 * pt.r)
+        grams = (np.asarray(g, dtype=float).ravel(), pt.JrJr, JhJh)
+    elif type(Jr) is not np.ndarray:  # scipy.sparse
         grams = (
             np.asarray(Jr.T @ (2.0 * pt.r), dtype=float).ravel(),
             2.0 * (Jr.T @ Jr),
@@ -202,7 +218,9 @@ def _gauss_newton(pt: _Point, lam: np.ndarray, mu: float) -> tuple[np.ndarray, J
         lam_mu = lam + (2.0 * mu) * pt.h
         g = g + (np.dot(lam_mu, pt.Jh) if type(pt.Jh) is np.ndarray else pt.Jh.T @ lam_mu)
         H = H + mu * JhJh
-    if type(H) is not np.ndarray:  # scipy.sparse
+    if type(H) is BandedSPD:
+        g = np.asarray(g, dtype=float).ravel()
+    elif type(H) is not np.ndarray:  # scipy.sparse
         H = H.tocsc()
         g = np.asarray(g, dtype=float).ravel()
     return g, H

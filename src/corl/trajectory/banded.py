@@ -1,0 +1,255 @@
+"""Symmetric banded matrices and their Cholesky factorization (the k-order Markov structure of Eq. 7).
+
+A cost of k-order Markov features on a B-spline trajectory (Eq. 7, Eq. 9) couples only control
+points that are a few knots apart, so with the time-major layout ``w.reshape(P, Q)`` its
+Gauss-Newton matrix ``H = 2 (Jr^T Jr + mu Jh^T Jh)`` is banded with a bandwidth of about
+``(degree + 2) Q``; a constraint at one time ``t_c`` (Eq. 6) adds a dense block on the control
+points active at ``t_c``, which lies inside the band. KOMO exploits the same structure. A banded
+Cholesky (LAPACK ``dpbtrf``/``dpbtrs``) then costs ``O(n u^2)`` instead of ``O(n^3)``.
+
+Glossary
+--------
+n         : size of the matrix
+u         : bandwidth, the number of sub-diagonals: ``H[i, j] = 0`` when ``|i - j| > u``
+ab        : LAPACK lower band storage, (u + 1, n): ``ab[i - j, j] = H[i, j]`` for ``0 <= i - j <= u``
+support   : sorted column indices where a sparse Jacobian has entries, (s,)
+G         : dense Gram matrix ``J[:, support]^T J[:, support]``, (s, s)
+perm      : symmetric permutation (reverse Cuthill-McKee) applied before banding, (n,)
+shift     : multiple of the identity added before factorizing (damping)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.linalg.blas import dsbmv
+from scipy.linalg.lapack import dpbtrf, dpbtrs
+from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+from corl.errors import InputError, NumericalError
+
+__all__ = ["BandedSPD", "SupportGram", "BandedCholeskyFactor", "banded_cholesky", "bandwidth", "banded_ordering"]
+
+_JITTER_LADDER = (1e-12, 1e-10, 1e-8, 1e-6, 1e-4)  # relative to the mean diagonal, as corl.numerics
+
+
+class BandedSPD:
+    """A symmetric (n, n) matrix in LAPACK lower band storage ``ab`` (u + 1, n).
+
+    Supports what the Gauss-Newton solver needs: ``H @ x``, ``H.diagonal()``, ``c * H`` and
+    ``H + c * SupportGram`` (which widens the band if the added block does not fit).
+    """
+
+    __slots__ = ("ab",)
+
+    def __init__(self, ab: np.ndarray) -> None:
+        self.ab = ab
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        n = self.ab.shape[1]
+        return n, n
+
+    @property
+    def bandwidth(self) -> int:
+        return self.ab.shape[0] - 1
+
+    def diagonal(self) -> np.ndarray:
+        """Main diagonal, (n,)."""
+        return self.ab[0]
+
+    def __matmul__(self, x: np.ndarray) -> np.ndarray:
+        """``H x`` for x: (n,), by BLAS ``dsbmv``."""
+        return dsbmv(self.ab.shape[0] - 1, 1.0, self.ab, x, lower=1)
+
+    def __mul__(self, c: float) -> BandedSPD:
+        return BandedSPD(self.ab * c)
+
+    __rmul__ = __mul__
+
+    def __add__(self, other) -> BandedSPD:
+        if type(other) is SupportGram:
+            return other.added_to(self)
+        if type(other) is BandedSPD:
+            u = max(self.bandwidth, other.bandwidth)
+            ab = _widened(self.ab, u)
+            ab[: other.ab.shape[0]] += other.ab
+            return BandedSPD(ab)
+        return NotImplemented
+
+    def toarray(self) -> np.ndarray:
+        """Dense (n, n) copy (tests and debugging only)."""
+        n, u = self.ab.shape[1], self.bandwidth
+        H = np.zeros((n, n))
+        for k in range(u + 1):
+            idx = np.arange(n - k)
+            H[idx + k, idx] = self.ab[k, : n - k]
+            H[idx, idx + k] = self.ab[k, : n - k]
+        return H
+
+    @classmethod
+    def from_sparse(cls, H, u: int | None = None) -> BandedSPD:
+        """Band storage of a symmetric scipy.sparse (or dense) H (n, n); only the lower triangle is read.
+
+        ``u`` defaults to the bandwidth of the sparsity pattern.
+        """
+        coo = sp.coo_matrix(H)
+        n = coo.shape[0]
+        if coo.shape != (n, n):
+            raise InputError(f"a banded matrix must be square, got shape {coo.shape}")
+        offset = coo.row - coo.col
+        lower = offset >= 0
+        offset, col, data = offset[lower], coo.col[lower], coo.data[lower]
+        if u is None:
+            u = int(offset.max()) if offset.size else 0
+        elif offset.size and offset.max() > u:
+            raise InputError(f"the matrix has entries {int(offset.max())} places below the diagonal, beyond u = {u}")
+        ab = np.zeros((u + 1, n))
+        np.add.at(ab, (offset, col), data)  # duplicates of a COO pattern are summed
+        return cls(ab)
+
+
+class SupportGram:
+    """``scale * J^T J`` for a sparse J (q, n) with few non-zero columns, kept as a small dense block.
+
+    The constraint part ``Jh^T Jh`` of the Gauss-Newton matrix (Eq. 8): its rows touch only the
+    control points active at the constraint times, so it is stored as ``G`` (s, s) on ``support``.
+    """
+
+    __slots__ = ("support", "G", "n")
+
+    def __init__(self, support: np.ndarray, G: np.ndarray, n: int) -> None:
+        self.support, self.G, self.n = support, G, n
+
+    @classmethod
+    def from_jacobian(cls, J, scale: float = 1.0) -> SupportGram:
+        """From J: (q, n) scipy.sparse or ndarray."""
+        n = J.shape[1]
+        if type(J) is np.ndarray:
+            dense = J
+            support = np.flatnonzero(np.any(J != 0.0, axis=0))
+        else:
+            J = J.tocsr()
+            support = np.unique(J.indices)
+            dense = J.toarray()
+        Js = dense[:, support]
+        return cls(support, scale * (Js.T @ Js), n)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.n, self.n
+
+    def diagonal(self) -> np.ndarray:
+        """Diagonal entries on the support, (s,) (the others are 0)."""
+        return np.diagonal(self.G)
+
+    def __mul__(self, c: float) -> SupportGram:
+        return SupportGram(self.support, c * self.G, self.n)
+
+    __rmul__ = __mul__
+
+    def added_to(self, H: BandedSPD) -> BandedSPD:
+        """A new :class:`BandedSPD` ``H + self`` (the band widens when the block does not fit)."""
+        s = self.support
+        rows, cols = np.nonzero(s[:, None] >= s[None, :])  # lower triangle of the block
+        offset = s[rows] - s[cols]
+        need = int(offset.max()) if offset.size else 0
+        ab = _widened(H.ab, max(need, H.bandwidth))
+        ab[offset, s[cols]] += self.G[rows, cols]  # (offset, column) pairs are distinct
+        return BandedSPD(ab)
+
+    def toarray(self) -> np.ndarray:
+        H = np.zeros((self.n, self.n))
+        H[np.ix_(self.support, self.support)] = self.G
+        return H
+
+
+def _widened(ab: np.ndarray, u: int) -> np.ndarray:
+    """Copy of ``ab`` with ``u + 1`` rows (zeros below)."""
+    if ab.shape[0] == u + 1:
+        return ab.copy()
+    out = np.zeros((u + 1, ab.shape[1]))
+    out[: ab.shape[0]] = ab
+    return out
+
+
+class BandedCholeskyFactor:
+    """Banded Cholesky factor (``dpbtrf``) of ``P (H + shift I) P^T``, with an optional permutation.
+
+    ``solve(b)`` returns ``(H + shift I)^{-1} b`` for b: (n,) or (n, k); ``jitter`` is what the
+    jitter ladder of :func:`banded_cholesky` had to add to the diagonal (0.0 when nothing).
+    """
+
+    __slots__ = ("c", "perm", "inverse", "jitter")
+
+    def __init__(self, c: np.ndarray, perm: np.ndarray | None = None, jitter: float = 0.0) -> None:
+        self.c = c
+        self.perm = perm
+        self.jitter = jitter
+        self.inverse = None if perm is None else np.argsort(perm)
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        vector = b.ndim == 1
+        rhs = b if self.perm is None else b[self.perm]
+        x, info = dpbtrs(self.c, rhs[:, None] if vector else rhs, lower=1)
+        if info != 0:
+            raise InputError(f"banded solve: argument {-info} had an illegal value (b of shape {b.shape})")
+        x = x[:, 0] if vector else x
+        return x if self.inverse is None else x[self.inverse]
+
+
+def banded_cholesky(
+    ab: np.ndarray, shift: float = 0.0, *, perm: np.ndarray | None = None, what: str = "matrix"
+) -> BandedCholeskyFactor:
+    """Factorize ``H + shift I`` given in lower band storage ``ab`` (u + 1, n) (LAPACK ``dpbtrf``).
+
+    When the factorization fails (H not positive definite), a jitter ladder of ``1e-12 .. 1e-4``
+    times the mean diagonal is added, as in :func:`corl.numerics.cholesky`.
+
+    Raises
+    ------
+    NumericalError
+        If the matrix stays indefinite after the largest jitter.
+    """
+    scale = float(np.mean(np.abs(ab[0]))) if ab.shape[1] else 1.0
+    scale = scale if scale > 0 and np.isfinite(scale) else 1.0
+    for jitter in (0.0,) + tuple(rel * scale for rel in _JITTER_LADDER):
+        shifted = ab.copy()
+        if shift or jitter:
+            shifted[0] += shift + jitter
+        c, info = dpbtrf(shifted, lower=1, overwrite_ab=1)
+        if info == 0:
+            return BandedCholeskyFactor(c, perm, jitter)
+        if info < 0:
+            raise InputError(f"banded Cholesky: argument {-info} had an illegal value (ab of shape {ab.shape})")
+    raise NumericalError(
+        f"banded Cholesky of the {what} failed: not positive definite even with jitter "
+        f"{_JITTER_LADDER[-1]:g} x mean diagonal; add damping or check that the Jacobians are finite"
+    )
+
+
+def bandwidth(H) -> int:
+    """Bandwidth ``max |i - j|`` over the stored entries of a scipy.sparse H (n, n)."""
+    coo = sp.coo_matrix(H)
+    if coo.nnz == 0:
+        return 0
+    return int(np.abs(coo.row.astype(np.int64) - coo.col).max())
+
+
+def banded_ordering(H) -> tuple[np.ndarray | None, int]:
+    """The ordering of a sparse symmetric H (n, n) with the smaller bandwidth.
+
+    Returns ``(perm, u)``: ``perm`` is None for the natural ordering (the time-major layout of the
+    trajectory parameters already gives a band of about ``(degree + 2) Q``), else the reverse
+    Cuthill-McKee permutation when it narrows the band.
+    """
+    u = bandwidth(H)
+    n = H.shape[0]
+    if (u + 1) * 4 <= n or n < 8:
+        return None, u
+    perm = reverse_cuthill_mckee(sp.csr_matrix(H), symmetric_mode=True).astype(np.int64)
+    coo = sp.coo_matrix(H)
+    position = np.empty(n, dtype=np.int64)
+    position[perm] = np.arange(n)
+    u_perm = int(np.abs(position[coo.row] - position[coo.col]).max()) if coo.nnz else 0
+    return (perm, u_perm) if u_perm < u else (None, u)
