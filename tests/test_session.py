@@ -146,3 +146,18 @@ def test_sigkill_at_random_moments_then_resume_equals_uninterrupted(tmp_path):
     assert kills >= 10
     summary = json.loads((out / "summary.json").read_text())
     assert summary["trials"] == len(expected)
+
+
+def test_export_parquet_round_trip(tmp_path):
+    pq = pytest.importorskip("pyarrow.parquet")
+    task = SyntheticTask((0.2, 1.1))
+    with RunStore(tmp_path / "a.corl") as db:
+        s = StoredRun.start(db, task, task_spec="synthetic", method="CORL+PIBU", seed=0)
+        s.run(task, max_trials=30)
+        table_path, arrays_path = db.export(s.run_id, tmp_path / "t.parquet")
+        expected = [(p.index, o.success, o.return_) for p, o in s.history]
+    table = pq.read_table(table_path).to_pydict()
+    got = list(zip(table["index"], [bool(v) for v in table["success"]], table["return"]))
+    assert got == expected
+    w = np.load(arrays_path, allow_pickle=False)["w"]
+    assert w.shape == (30, 2)

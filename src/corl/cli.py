@@ -117,7 +117,7 @@ def run(
     seed: Optional[int] = typer.Option(None, help="seed (default 0)"),
     out: Path = typer.Option(Path("results/run"), help="output folder for summary.json"),
     store: Optional[Path] = typer.Option(None, help="run store (default OUT/run.corl)"),
-    resume: bool = typer.Option(False, "--resume", help="continue the store's latest run exactly"),
+    resume: bool = typer.Option(False, "--resume", help="continue the store's latest run exactly (or start one)"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress output"),
 ) -> None:
     """One learning run, every trial committed to the store; writes OUT/summary.json."""
@@ -136,10 +136,11 @@ def run(
         _fail(str(exc))
     with db:
         try:
-            if resume:
-                info = db.latest_run()
-                if info is None:
-                    _fail(f"--resume: {store_path} holds no run; drop --resume to start one")
+            info = db.latest_run() if resume else None
+            if resume and info is None and not quiet:
+                typer.echo(f"--resume: {store_path} holds no run yet (killed before its first commit?); "
+                           "starting one", err=True)
+            if info is not None:
                 for flag, given, stored in (("--method", method, info.method), ("--seed", seed, info.seed)):
                     if given is not None and given != stored:
                         _fail(f"{flag} {given} differs from the run being resumed ({stored}); drop the flag")

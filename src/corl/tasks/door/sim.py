@@ -103,7 +103,7 @@ def _bar_distance(scene: DoorScene, data, point: np.ndarray) -> float:
 
 
 def rollout(reference, *, duration: float = 5.0, t_contact: float | None = None,
-            scene: DoorScene | None = None, data=None) -> RolloutResult:
+            scene: DoorScene | None = None, data=None, on_frame=None, frame_every: int = 20) -> RolloutResult:
     """Simulate one trial of tracking ``reference``.
 
     Parameters
@@ -114,6 +114,7 @@ def rollout(reference, *, duration: float = 5.0, t_contact: float | None = None,
         the first instant a fingertip pad touches the handle.
     scene : DoorScene, defaults to :func:`load_scene`
     data : mujoco.MjData to reuse (it is reset), optional
+    on_frame : callable ``(t, data) -> None`` called every ``frame_every`` steps (e.g. to render)
 
     Returns
     -------
@@ -163,6 +164,8 @@ def rollout(reference, *, duration: float = 5.0, t_contact: float | None = None,
         handle[k] = data.qpos[haq]
         force_raw[k] = data.sensordata[fa:fa + 3]
         rot_ft[k] = data.site_xmat[site].reshape(3, 3)
+        if on_frame is not None and k % frame_every == 0:
+            on_frame(k * dt, data)
         if k % _SAMPLE_EVERY == 0:
             touch = _pad_touches(data, pads, bar)
             if touch and np.isnan(first_touch):

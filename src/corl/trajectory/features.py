@@ -1,0 +1,364 @@
+"""k-order Markov squared features on B-spline trajectories (Eq. 7, Eq. 9) and equality features (Eq. 6).
+
+The analytic cost of Eq. 7 is ``J(w) = sum_t v_t phi_t(x_t)^2`` over the discretized trajectory
+``x_t = xi(w, t dt)``, ``t = 0..K``, ``dt = T / K``. A feature maps w to a vector ``phi`` and its
+SPARSE Jacobian ``dphi/dw``; the solver's residuals are the weighted features ``sqrt(v_t) phi_t``
+so that ``r^T r = J`` (Eq. 7).
+
+* Velocity (k = 1) and acceleration (k = 2, Eq. 9) features are linear in w: ``phi = A w`` with a
+  constant sparse A, built once.
+* Joint limits: squared hinge ``max(0, x - upper) + min(0, x - lower)``, piecewise linear in w.
+* Equalities: a fixed configuration ``h = xi(w, t0) - q0`` (linear) and a task-space point
+  ``h = fk(xi(w, t_c)) - target`` (Eq. 6, the contact-point projection), possibly at several times
+  of a contact interval with one target each.
+
+:class:`TrajectoryProblem` stacks cost features into one residual vector and equality features into
+one constraint vector, a :class:`~corl.trajectory.solver.LeastSquaresProblem` for
+:func:`~corl.trajectory.solver.solve`. When every cost feature is linear it also offers the constant
+``2 A^T A`` in band storage (``cost_hessian``), so the solver never forms ``Jr^T Jr`` again.
+
+Glossary
+--------
+w, n      : trajectory parameters (n,), time-major (``w.reshape(P, Q)``), n = P Q
+K, dt     : number of time steps of the discretization and its step ``T / K``
+x_t       : configuration at time ``t dt``, (Q,)
+phi, A    : feature values (m,) and, for linear features, their constant Jacobian (m, n): phi = A w - b
+v_t       : per-time weights of Eq. 7; the residual is ``sqrt(v_t) phi_t``
+fk        : forward kinematics callback ``q (Q,) -> (y (d,), dy/dq (d, Q))``
+t_c       : contact time(s) of Eq. 6; ``target`` the task-space point(s) there, (c, d)
+h, Jh     : stacked equalities (q,) and their sparse Jacobian (q, n)
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable, Protocol, Sequence, runtime_checkable
+
+import numpy as np
+import scipy.sparse as sp
+
+from corl.errors import InputError, NumericalError
+from corl.trajectory.banded import BandedSPD
+from corl.trajectory.bspline import BSpline
+
+__all__ = [
+    "Feature",
+    "LinearFeature",
+    "acceleration_feature",
+    "velocity_feature",
+    "configuration_feature",
+    "JointLimitFeature",
+    "TaskSpaceFeature",
+    "TrajectoryProblem",
+    "stack_csr",
+]
+
+ForwardKinematics = Callable[[np.ndarray], "tuple[np.ndarray, np.ndarray]"]
+
+
+@runtime_checkable
+class Feature(Protocol):
+    """A vector feature of w with a sparse Jacobian."""
+
+    dim: int  # number of rows m
+
+    def __call__(self, w: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+        """``(phi (m,), dphi/dw (m, n) CSR)``."""
+
+
+# ---------------------------------------------------------------------------------------------
+# Linear features
+# ---------------------------------------------------------------------------------------------
+class LinearFeature:
+    """``phi(w) = A w - b`` with a constant sparse A (m, n) and b (m,)."""
+
+    linear = True
+
+    def __init__(self, A, b=None, *, name: str = "linear feature") -> None:
+        self.A = sp.csr_matrix(A, dtype=float)
+        self.b = np.zeros(self.A.shape[0]) if b is None else np.asarray(b, dtype=float).ravel()
+        if self.b.shape != (self.A.shape[0],):
+            raise InputError(f"{name}: b has shape {self.b.shape}, expected ({self.A.shape[0]},)")
+        self.name = name
+
+    @property
+    def dim(self) -> int:
+        return self.A.shape[0]
+
+    def __call__(self, w: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+        return self.A @ w - self.b, self.A
+
+
+def _weights(weights, count: int, what: str) -> np.ndarray:
+    """Per-time weights v_t (count,), from None (all 1), a scalar or a vector; checked >= 0."""
+    v = np.ones(count) if weights is None else np.broadcast_to(np.asarray(weights, dtype=float), (count,)).copy()
+    if not np.all(np.isfinite(v)) or np.any(v < 0):
+        raise InputError(f"{what}: weights v_t must be finite and >= 0 (Eq. 7), got min {v.min():g}")
+    return v
+
+
+def _difference(K: int, order: int) -> sp.csr_matrix:
+    """Finite differences of ``order`` on K + 1 samples, ((K + 1 - order), K + 1).
+
+    order 1: ``x_t - x_{t-1}``; order 2: ``x_t - 2 x_{t-1} + x_{t-2}`` (Eq. 9 without 1/dt^2).
+    """
+    stencil = {1: (-1.0, 1.0), 2: (1.0, -2.0, 1.0)}[order]
+    m = K + 1 - order
+    return sp.diags(stencil, list(range(order + 1)), shape=(m, K + 1), format="csr")
+
+
+def _markov_feature(spline: BSpline, num_steps: int, weights, order: int, name: str) -> LinearFeature:
+    if not isinstance(num_steps, (int, np.integer)) or num_steps < order:
+        raise InputError(f"{name}: num_steps must be an integer >= {order}, got {num_steps!r}")
+    dt = float(spline.duration) / num_steps
+    v = _weights(weights, num_steps + 1 - order, name)
+    # sqrt(v_t) (finite difference of order k of x_t) / dt^k, with x = kron(B, I_Q) w  (Eq. 7, Eq. 9)
+    S = sp.diags(np.sqrt(v) / dt**order) @ _difference(num_steps, order) @ spline.basis(spline.grid(num_steps))
+    A = sp.kron(S, sp.identity(spline.num_joints, format="csr"), format="csr")
+    A.eliminate_zeros()
+    return LinearFeature(A, name=name)
+
+
+def acceleration_feature(spline: BSpline, num_steps: int, weights=None) -> LinearFeature:
+    """Squared accelerations of Eq. 9: ``sqrt(v_t) (x_t - 2 x_{t-1} + x_{t-2}) / dt^2``, t = 2..K.
+
+    Parameters
+    ----------
+    spline : the trajectory basis.
+    num_steps : K, the time steps of the discretization ``x_t = xi(w, t dt)``, ``dt = T / K``.
+    weights : v_t, scalar or (K - 1,) for t = 2..K; default 1.
+
+    Returns
+    -------
+    LinearFeature with ``A``: ((K - 1) Q, n); rows time-major.
+    """
+    return _markov_feature(spline, num_steps, weights, 2, "acceleration feature")
+
+
+def velocity_feature(spline: BSpline, num_steps: int, weights=None) -> LinearFeature:
+    """Squared velocities ``sqrt(v_t) (x_t - x_{t-1}) / dt``, t = 1..K; weights: scalar or (K,).
+
+    Returns a LinearFeature with ``A``: (K Q, n).
+    """
+    return _markov_feature(spline, num_steps, weights, 1, "velocity feature")
+
+
+def configuration_feature(spline: BSpline, time: float, q) -> LinearFeature:
+    """Equality ``h = xi(w, time) - q`` (Q,), e.g. a fixed start configuration ``xi(w, 0) = q0``."""
+    q = np.asarray(q, dtype=float).ravel()
+    if q.shape != (spline.num_joints,):
+        raise InputError(f"configuration has shape {q.shape}, expected ({spline.num_joints},)")
+    A = spline.operator([time])
+    A.eliminate_zeros()
+    return LinearFeature(A, q, name=f"configuration at t = {time:g}")
+
+
+# ---------------------------------------------------------------------------------------------
+# Nonlinear features
+# ---------------------------------------------------------------------------------------------
+class JointLimitFeature:
+    """Squared hinge joint limits ``sqrt(v) (max(0, x - upper) + min(0, x - lower))`` at given times.
+
+    Parameters
+    ----------
+    spline : the trajectory basis.
+    times : (c,) times in [0, T] where the limits are checked (e.g. ``spline.grid(K)``).
+    lower, upper : (Q,) joint limits (``-inf``/``inf`` for none), ``lower <= upper``.
+    weight : v > 0.
+
+    The value is (c Q,) time-major; its Jacobian keeps only the rows of violated limits (the
+    hinge's derivative is taken as 0 exactly on a limit).
+    """
+
+    linear = False
+
+    def __init__(self, spline: BSpline, times, lower, upper, weight: float = 1.0) -> None:
+        Q = spline.num_joints
+        self.lower = np.broadcast_to(np.asarray(lower, dtype=float), (Q,)).copy()
+        self.upper = np.broadcast_to(np.asarray(upper, dtype=float), (Q,)).copy()
+        if np.any(self.lower > self.upper) or np.any(np.isnan(self.lower)) or np.any(np.isnan(self.upper)):
+            raise InputError("joint limits need lower <= upper for every joint (use -inf/inf for none)")
+        if not (math.isfinite(weight) and weight > 0):
+            raise InputError(f"joint-limit weight must be positive and finite, got {weight!r}")
+        self.operator = spline.operator(times)
+        self.scale = math.sqrt(weight)
+        count = self.operator.shape[0] // Q
+        self.lo, self.hi = np.tile(self.lower, count), np.tile(self.upper, count)
+
+    @property
+    def dim(self) -> int:
+        return self.operator.shape[0]
+
+    def __call__(self, w: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+        x = self.operator @ w
+        above, below = x > self.hi, x < self.lo
+        value = self.scale * (np.where(above, x - self.hi, 0.0) + np.where(below, x - self.lo, 0.0))
+        active = (above | below).astype(float) * self.scale
+        return value, sp.csr_matrix(self.operator.multiply(active[:, None]))
+
+
+class TaskSpaceFeature:
+    """Task-space points ``h_k = fk(xi(w, t_k)) - target_k`` at c times (Eq. 6).
+
+    One time ``t_c`` is the contact-point projection ``h(w, theta) = phi_CP(xi(w, t_c)) - theta``;
+    several times sample a contact interval ``[t_c0, t_c1]`` with one target each.
+
+    Parameters
+    ----------
+    spline : the trajectory basis.
+    fk : ``q (Q,) -> (y (d,), dy/dq (d, Q))``, forward kinematics and its Jacobian.
+    times : (c,) contact times in [0, T].
+    targets : (c, d) or (d,) task-space targets (one per time, or the same for all).
+
+    The value is (c d,) time-major. Only the ``(degree + 1) Q`` parameters of the control points
+    active at each t_k enter its Jacobian row, so ``Jh^T Jh`` stays local (banded).
+    """
+
+    linear = False
+
+    def __init__(self, spline: BSpline, fk: ForwardKinematics, times, targets) -> None:
+        if not callable(fk):
+            raise InputError(f"fk must be callable q -> (y, dy/dq), got {fk!r}")
+        self.fk, self.Q, self.n = fk, spline.num_joints, spline.n
+        B = spline.basis(times)
+        c = B.shape[0]
+        self.times = np.atleast_1d(np.asarray(times, dtype=float))
+        targets = np.asarray(targets, dtype=float)
+        if targets.ndim == 1:
+            targets = np.broadcast_to(targets, (c, targets.shape[0]))
+        if targets.ndim != 2 or targets.shape[0] != c or not np.all(np.isfinite(targets)):
+            raise InputError(f"targets have shape {targets.shape}, expected finite (d,) or ({c}, d) for {c} times")
+        self.targets = targets.copy()
+        self.d = targets.shape[1]
+        # The k + 1 basis functions active at each time: columns idx (c, k + 1) and values b (c, k + 1).
+        width = spline.degree + 1
+        B = B.tocsr()
+        B.sort_indices()
+        counts = np.diff(B.indptr)
+        if np.any(counts > width):
+            raise InputError("internal: a B-spline basis row has more than degree + 1 entries")
+        idx = np.zeros((c, width), dtype=np.int64)
+        val = np.zeros((c, width))
+        for row in range(c):  # once, at construction
+            cols = B.indices[B.indptr[row] : B.indptr[row + 1]]
+            first = min(int(cols[0]) if cols.size else 0, spline.num_control_points - width)
+            idx[row] = np.arange(first, first + width)
+            val[row, cols - first] = B.data[B.indptr[row] : B.indptr[row + 1]]
+        self.idx, self.basis_values = idx, val
+        # Sparse pattern of the Jacobian: row (k, a) has columns idx[k, p] Q + j, p = 0..k, j = 0..Q-1.
+        cols = (idx[:, :, None] * self.Q + np.arange(self.Q)).reshape(c, 1, width * self.Q)
+        self._indices = np.broadcast_to(cols, (c, self.d, width * self.Q)).reshape(-1).astype(np.int32)
+        self._indptr = (np.arange(c * self.d + 1) * (width * self.Q)).astype(np.int32)
+
+    @property
+    def dim(self) -> int:
+        return self.targets.shape[0] * self.d
+
+    def configurations(self, w: np.ndarray) -> np.ndarray:
+        """``xi(w, t_k)`` (c, Q)."""
+        W = w.reshape(-1, self.Q)
+        return np.einsum("kp,kpj->kj", self.basis_values, W[self.idx])
+
+    def __call__(self, w: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+        X = self.configurations(w)
+        c, d, Q = X.shape[0], self.d, self.Q
+        values = np.empty((c, d))
+        jac = np.empty((c, d, Q))
+        for k in range(c):
+            y, dy = self.fk(X[k])
+            values[k] = np.asarray(y, dtype=float).reshape(d) - self.targets[k]
+            jac[k] = np.asarray(dy, dtype=float).reshape(d, Q)
+        # dh_k/dw[p Q + j] = b_kp dy_k/dq_j  (chain rule through xi(w, t_k) = B(t_k) W, Eq. 6)
+        data = (jac[:, :, None, :] * self.basis_values[:, None, :, None]).reshape(-1)
+        J = sp.csr_matrix((data, self._indices, self._indptr), shape=(c * d, self.n))
+        return values.reshape(-1), J
+
+
+# ---------------------------------------------------------------------------------------------
+# Stacking
+# ---------------------------------------------------------------------------------------------
+def stack_csr(blocks: Sequence[sp.csr_matrix], n: int) -> sp.csr_matrix:
+    """Vertical stack of CSR matrices (m_i, n) by concatenating their arrays (cheaper than sp.vstack)."""
+    if len(blocks) == 1:
+        return blocks[0]
+    if not blocks:
+        return sp.csr_matrix((0, n))
+    offsets = np.cumsum([0] + [b.nnz for b in blocks[:-1]])
+    indptr = np.concatenate([blocks[0].indptr[:1]] + [b.indptr[1:] + o for b, o in zip(blocks, offsets)])
+    data = np.concatenate([b.data for b in blocks])
+    indices = np.concatenate([b.indices for b in blocks])
+    rows = sum(b.shape[0] for b in blocks)
+    return sp.csr_matrix((data, indices, indptr), shape=(rows, n))
+
+
+class TrajectoryProblem:
+    """Stacked cost and equality features: a :class:`~corl.trajectory.solver.LeastSquaresProblem`.
+
+    ``r(w)`` is the concatenation of the cost features (so ``J = r^T r``, Eq. 7) and ``h(w)`` that
+    of the equality features; both come with sparse CSR Jacobians (rows in the order given, linear
+    features first within each group). Linear features are stacked once at construction.
+
+    Parameters
+    ----------
+    n : number of parameters (``spline.n``).
+    costs : cost features (:class:`LinearFeature` or callables returning ``(phi, dphi/dw)``).
+    equalities : equality features, may be empty.
+    """
+
+    def __init__(self, n: int, costs: Sequence = (), equalities: Sequence = ()) -> None:
+        self.n = int(n)
+        if not costs:
+            raise InputError("TrajectoryProblem needs at least one cost feature (Eq. 7)")
+        self._cost_linear, self._cost_other = self._split(costs, "cost")
+        self._eq_linear, self._eq_other = self._split(equalities, "equality")
+        self._hessian: BandedSPD | None = None
+
+    def _split(self, features: Sequence, what: str) -> tuple[LinearFeature | None, tuple]:
+        for f in features:
+            if not callable(f):
+                raise InputError(f"{what} features must be callables w -> (phi, dphi/dw), got {f!r}")
+            A = getattr(f, "A", None)
+            if A is not None and A.shape[1] != self.n:
+                raise InputError(f"{what} feature {f!r} acts on {A.shape[1]} parameters, expected n = {self.n}")
+        linear = [f for f in features if getattr(f, "linear", False)]
+        other = tuple(f for f in features if not getattr(f, "linear", False))
+        if not linear:
+            return None, other
+        A = stack_csr([f.A for f in linear], self.n)
+        return LinearFeature(A, np.concatenate([f.b for f in linear]), name=f"{what}s"), other
+
+    def residuals(self, w: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+        """``r`` (p,) and ``dr/dw`` (p, n) CSR."""
+        return self._evaluate(self._cost_linear, self._cost_other, w)
+
+    def equalities(self, w: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+        """``h`` (q,) and ``dh/dw`` (q, n) CSR (q = 0 without equality features)."""
+        return self._evaluate(self._eq_linear, self._eq_other, w)
+
+    def _evaluate(self, linear, other, w) -> tuple[np.ndarray, sp.csr_matrix]:
+        if not other:
+            if linear is None:
+                return np.zeros(0), sp.csr_matrix((0, self.n))
+            return linear.A @ w - linear.b, linear.A
+        parts = [] if linear is None else [linear(w)]
+        for f in other:
+            value, jac = f(w)
+            parts.append((np.asarray(value, dtype=float).ravel(), jac if type(jac) is sp.csr_matrix else sp.csr_matrix(jac)))
+        return np.concatenate([p[0] for p in parts]), stack_csr([p[1] for p in parts], self.n)
+
+    def cost(self, w: np.ndarray) -> float:
+        """``J(w) = r^T r`` (Eq. 7)."""
+        r, _ = self.residuals(w)
+        return float(r @ r)
+
+    def cost_hessian(self) -> BandedSPD | None:
+        """Constant Gauss-Newton Hessian ``2 A^T A`` of J in band storage when every cost feature is
+        linear (else None); the solver then skips forming ``Jr^T Jr`` at every iterate."""
+        if self._cost_other or self._cost_linear is None:
+            return None
+        if self._hessian is None:
+            A = self._cost_linear.A
+            self._hessian = BandedSPD.from_sparse(2.0 * (A.T @ A).tocsr())
+            if not np.all(np.isfinite(self._hessian.ab)):
+                raise NumericalError("the linear cost features contain NaN or inf")
+        return self._hessian
