@@ -110,6 +110,19 @@ def _summary(task, method: str, seed: int, learner, seconds: float) -> dict:
     }
 
 
+def _task_extras(task, learner) -> dict:
+    """Door-style extras: the demonstration's J and return, the final return and door angle."""
+    if not hasattr(task, "simulate") or not learner.history:
+        return {}
+    from corl.learner import cost_of
+
+    demo_p, demo_o = learner.history[0]
+    best = learner.best
+    final = task.simulate(best.w)
+    return {"J_demo": cost_of(task, demo_p.w), "return_demo": demo_o.return_,
+            "return_final": best.return_, "door_angle_final": float(final.hinge_final)}
+
+
 @app.command("run")
 def run(
     task: str = typer.Argument(..., help="'synthetic', or an import path 'package.module:make_task'"),
@@ -119,8 +132,9 @@ def run(
     store: Optional[Path] = typer.Option(None, help="run store (default OUT/run.corl)"),
     resume: bool = typer.Option(False, "--resume", help="continue the store's latest run exactly (or start one)"),
     quiet: bool = typer.Option(False, "--quiet", help="no progress output"),
+    video: bool = typer.Option(True, "--video/--no-video", help="render demonstration vs learned motion"),
 ) -> None:
-    """One learning run, every trial committed to the store; writes OUT/summary.json."""
+    """One learning run, every trial committed to the store; writes OUT/summary.json, figures, video."""
     import time
 
     from corl.errors import CorlError
@@ -173,6 +187,12 @@ def run(
         payload = _summary(the_task, method, seed, session.learner, time.perf_counter() - t0)
         payload["store"] = str(store_path)
         payload["run_id"] = session.run_id
+        payload.update(_task_extras(the_task, session.learner))
+        if not quiet:
+            typer.echo("writing figures and video ...", err=True)
+        from corl.experiments.artifacts import write_run_artifacts
+
+        payload["files"] = write_run_artifacts(the_task, session.learner, out, video=video)
     _write_json(out / "summary.json", payload)
     typer.echo(json.dumps({k: v for k, v in payload.items() if k != "versions"}, indent=2))
 

@@ -253,20 +253,35 @@ class CORL:
         the previous one, which follows the constraint manifold instead of cutting across it.
         """
         cfg = self.config
-        result = project(self._constraint(theta), w_star, config=cfg.solver)
+        result = self._project(theta, w_star)
         if self._feasible(result):
             return result
         for pieces in (8, 64):
             w = w_star
             for k in range(1, pieces + 1):
                 step_theta = theta_star + (theta - theta_star) * (k / pieces)
-                result = project(self._constraint(step_theta), w, config=cfg.solver)
+                result = self._project(step_theta, w)
                 if not self._feasible(result):
                     break
                 w = result.w
             else:
                 return result
         return result
+
+    def _project(self, theta, anchor):
+        """Eq. 18 from ``anchor``; in the task's ``projection_metric`` L when it has one.
+
+        The paper's Euclidean distance ``||w - w*||`` moves only the few B-spline control points
+        around each constrained time, so the motion bends there and returns to its old path in
+        between. A task may give a sparse ``L`` (rows, n) and get the closest trajectory in
+        ``||L (w - w*)||`` instead (e.g. accelerations: a smooth deformation).
+        """
+        metric = getattr(self.task, "projection_metric", None)
+        if metric is None:
+            return project(self._constraint(theta), anchor, config=self.config.solver)
+        L = metric
+        problem = FunctionProblem(lambda w: (L @ (w - anchor), L), self._constraint(theta))
+        return solve(problem, anchor, config=self.config.solver)
 
     def _reinforcement(self, w_star, theta_star, r_star, data):
         task, cfg = self.task, self.config

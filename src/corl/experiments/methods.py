@@ -81,8 +81,15 @@ def _factory(name: str, s: MethodSettings) -> Callable:
     raise InputError(f"unknown black-box method '{name}'; choose one of PIBU, UCB, SAL, CMA, PoWER")
 
 
-def make_method(name: str, task: Task, *, seed: int = 0, settings: MethodSettings = MethodSettings()):
-    """Build the learner called ``name`` (a Fig. 1 row) for ``task``; it speaks ask/tell/run."""
+def make_method(name: str, task: Task, *, seed: int = 0, settings: MethodSettings | None = None):
+    """Build the learner called ``name`` (a Fig. 1 row) for ``task``; it speaks ask/tell/run.
+
+    ``settings`` default to the task's own (``task.method_settings()``, e.g. the door's
+    hyperparameters from Sec. VIII-B) or, for tasks without them, the synthetic benchmark's.
+    """
+    if settings is None:
+        preset = getattr(task, "method_settings", None)
+        settings = preset() if callable(preset) else MethodSettings()
     if name.startswith("CORL+"):
         inner = _factory(name[len("CORL+"):], settings)
         budget = settings.corl.max_rl_trials if settings.rl_budget is None else settings.rl_budget

@@ -11,7 +11,7 @@ from corl.problem import Task
 
 __all__ = ["load_task", "BUILTIN_TASKS"]
 
-BUILTIN_TASKS = ("synthetic",)
+BUILTIN_TASKS = ("synthetic", "door")
 
 
 def load_task(spec: str, *, seed: int = 0) -> Task:
@@ -20,6 +20,10 @@ def load_task(spec: str, *, seed: int = 0) -> Task:
         from corl.tasks.synthetic import SyntheticTask
 
         return SyntheticTask(SyntheticTask.random_start(np.random.default_rng([seed, 2016])))
+    if spec == "door":
+        from corl.tasks.door.task import DoorTask
+
+        return DoorTask()
     if ":" not in spec:
         raise InputError(f"unknown task '{spec}'; use one of {', '.join(BUILTIN_TASKS)} "
                          "or an import path 'package.module:make_task'")

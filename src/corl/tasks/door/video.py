@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["render_rollout", "write_side_by_side"]
+__all__ = ["render_rollout", "write_side_by_side", "caption"]
 
 
 def _camera(scene):
@@ -53,11 +53,11 @@ def render_rollout(reference, *, duration: float = 5.0, t_contact=None, fps: int
         renderer.close()
     frames = np.stack(frames)
     if label:
-        frames = _caption(frames, label)
+        frames = caption(frames, label)
     return frames, result
 
 
-def _caption(frames: np.ndarray, text: str) -> np.ndarray:
+def caption(frames: np.ndarray, text: str) -> np.ndarray:
     """Burn a caption into the top-left corner of every frame (matplotlib's font rasteriser)."""
     import matplotlib
 

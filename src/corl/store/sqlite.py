@@ -1,51 +1,24 @@
-"""The run store: every trial of a run, committed to SQLite before the learning loop moves on.
-
-On a real robot a trial costs minutes, so the store never loses, repeats or corrupts one:
-
-- every write (one proposal, one outcome, one run) is one transaction, ``BEGIN IMMEDIATE ...
-  COMMIT``, in WAL mode with ``synchronous=FULL``: a process killed at any moment leaves the old
-  or the new state, never half a trial, and a call that returned has reached the disk;
-- one writer at a time: a writing :class:`RunStore` holds an exclusive lock on the sibling file
-  ``<store>.lock`` for its whole life. The kernel releases the lock when the process exits or is
-  killed, so a crashed run never blocks its own resume. Readers (``readonly=True``) open at any
-  time and see the last committed state;
-- arrays are stored as raw little-endian float64 bytes beside their shape (never pickled), so they
-  come back bit for bit;
-- :func:`replay` resumes a run exactly: a fresh deterministic learner is asked again for every
-  stored trial, must propose the very same trial, and is told every stored outcome.
-
-A run's trials form a prefix: indices 0, 1, ..., d-1 without gaps, every outcome belongs to a
-stored proposal, and only the last trial may be pending (asked, not yet told).
-
-Schema (format 1; ``PRAGMA user_version`` and ``meta.format_version`` hold the format)
-------------------------------------------------------------------------------------------
-meta(key, value)                                       format_version, created, created_by
-runs(id, created, task, method, seed, config, versions, status)    config, versions: JSON
-trials(run_id, trial_index, step, round, w, w_shape, theta, theta_shape, proposed_at)
-outcomes(run_id, trial_index, success, return_, info, told_at)     return_ NULL when unobserved
-``w``, ``theta``: float64 little-endian bytes; ``*_shape``: JSON list; times: ISO 8601 UTC.
-"""
+"""The SQLite run store and its writer lock (the file format is described in :mod:`corl.store`)."""
 
 from __future__ import annotations
 
-import csv
 import json
 import os
 import socket
 import sqlite3
-import tempfile
 from contextlib import contextmanager
-from dataclasses import dataclass
-from datetime import datetime, timezone
-from enum import Enum
 from pathlib import Path
-from typing import Any, Iterator, Mapping, Protocol
+from typing import Any, Iterator, Mapping
 
 import numpy as np
 
-from corl.errors import CorlError, InputError
+from corl.errors import InputError
 from corl.problem import Outcome, Proposal
-from corl.versions import library_versions, version_differences
+from corl.store.export import _table_columns, _write_atomically, _write_csv
+from corl.store.records import (
+    RunInfo, RunStatus, StoreError, TrialRecord, _as_int, _decode_array, _encode_array, _json, _now,
+)
+from corl.versions import library_versions
 
 try:  # POSIX
     import fcntl
@@ -53,12 +26,9 @@ except ImportError:  # pragma: no cover - Windows
     fcntl = None
     import msvcrt
 
-__all__ = ["FORMAT_VERSION", "RunInfo", "RunStatus", "RunStore", "StoreError", "TrialRecord", "replay"]
-
 FORMAT_VERSION = 1  # the newest file format this corl reads and the one it writes
 APPLICATION_ID = int.from_bytes(b"corl", "big")  # marks the SQLite file as a corl store
 _BUSY_TIMEOUT_S = 5.0
-_ARRAY_DTYPE = np.dtype("<f8")
 _RESTORE_HINT = "restore it from a copy or start a new store with a different --store path"
 
 _SCHEMA = (
@@ -93,100 +63,6 @@ _SCHEMA = (
         UNIQUE (run_id, trial_index),
         FOREIGN KEY (run_id, trial_index) REFERENCES trials (run_id, trial_index))""",
 )
-
-
-class StoreError(CorlError):
-    """The run store cannot do what was asked (damaged file, second writer, trial told twice, ...)."""
-
-
-class RunStatus(str, Enum):
-    """Where a run stands; a running run can be resumed, a finished one is only read."""
-
-    RUNNING = "running"
-    FINISHED = "finished"
-
-
-@dataclass(frozen=True)
-class RunInfo:
-    """One run as listed by ``corl runs``; ``n_trials`` proposals stored, ``n_told`` of them told."""
-
-    id: int
-    created: str
-    task: str
-    method: str
-    seed: int | None
-    config: dict[str, Any]
-    versions: dict[str, str]
-    status: RunStatus
-    n_trials: int
-    n_told: int
-
-
-@dataclass(frozen=True, eq=False)
-class TrialRecord:
-    """A stored trial: its proposal and, once told, its outcome (None while pending)."""
-
-    proposal: Proposal
-    outcome: Outcome | None
-    proposed_at: str
-    told_at: str | None
-
-    @property
-    def index(self) -> int:
-        return self.proposal.index
-
-
-class AskTellLearner(Protocol):
-    """What :func:`replay` needs: the CORL learner's ``ask() -> Proposal`` and ``tell(outcome)``."""
-
-    def ask(self) -> Proposal: ...
-
-    def tell(self, outcome: Outcome) -> None: ...
-
-
-def _now() -> str:
-    return datetime.now(timezone.utc).isoformat(timespec="microseconds")
-
-
-def _json(value: Any, *, what: str) -> str:
-    """JSON text of ``value``; numpy scalars and arrays become numbers and lists."""
-
-    def plain(obj: Any) -> Any:
-        if isinstance(obj, (np.generic, np.ndarray)):
-            return obj.tolist()
-        raise TypeError(f"a {type(obj).__name__} is not JSON-serializable")
-
-    try:
-        return json.dumps(value, default=plain)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{what} must be JSON-serializable to be stored: {exc}") from None
-
-
-def _encode_array(value: Any, *, what: str) -> tuple[bytes, str]:
-    """Little-endian float64 bytes and JSON shape of an array, e.g. ``w``: (n,)."""
-    try:
-        arr = np.ascontiguousarray(value, dtype=_ARRAY_DTYPE)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{what} must be an array of numbers to be stored: {exc}") from None
-    return arr.tobytes(), json.dumps(list(arr.shape))
-
-
-def _decode_array(blob: bytes, shape_json: str, *, what: str) -> np.ndarray:
-    shape = tuple(json.loads(shape_json))
-    if len(blob) != _ARRAY_DTYPE.itemsize * int(np.prod(shape, dtype=np.int64)):
-        raise StoreError(f"{what} has {len(blob)} bytes, which does not fit its shape {shape}; the store is damaged")
-    return np.frombuffer(blob, dtype=_ARRAY_DTYPE).astype(np.float64).reshape(shape)
-
-
-def _as_int(value: Any, *, what: str, minimum: int | None = None) -> int:
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
-        raise InputError(f"{what} must be an integer, got {value!r}")
-    value = int(value)
-    if minimum is not None and value < minimum:
-        raise InputError(f"{what} must be at least {minimum}, got {value}")
-    if not -(2**63) <= value < 2**63:
-        raise InputError(f"{what} is {value}, outside the 64-bit range a store holds")
-    return value
 
 
 def _holds(db: sqlite3.Connection, table: str, run_id: int, index: int) -> bool:
@@ -249,7 +125,7 @@ class _WriterLock:
 
 
 class RunStore:
-    """Runs, their trials and outcomes in one SQLite file (see the module docstring).
+    """Runs, their trials and outcomes in one SQLite file (see the docstring of :mod:`corl.store`).
 
     Parameters
     ----------
@@ -622,105 +498,3 @@ class RunStore:
         mode = "read-only" if self.readonly else "writer"
         state = "closed" if self._db is None else "open"
         return f"RunStore({str(self.path)!r}, {mode}, {state})"
-
-
-def _table_columns(records: list[TrialRecord]) -> dict[str, list]:
-    """The export table as columns; missing values are None."""
-    m = max((r.proposal.theta.size for r in records), default=0)
-    columns: dict[str, list] = {"index": [], "step": [], "round": []}
-    columns.update({f"theta_{j}": [] for j in range(m)})
-    columns.update({"success": [], "return": [], "proposed_at": [], "told_at": []})
-    for r in records:
-        theta = r.proposal.theta.ravel()
-        columns["index"].append(r.index)
-        columns["step"].append(r.proposal.step)
-        columns["round"].append(r.proposal.round)
-        for j in range(m):
-            columns[f"theta_{j}"].append(float(theta[j]) if j < theta.size else None)
-        columns["success"].append(None if r.outcome is None else int(r.outcome.success))
-        columns["return"].append(None if r.outcome is None else r.outcome.return_)
-        columns["proposed_at"].append(r.proposed_at)
-        columns["told_at"].append(r.told_at)
-    return columns
-
-
-def _write_csv(file, columns: dict[str, list]) -> None:
-    writer = csv.writer(file)
-    writer.writerow(columns)
-    for row in zip(*columns.values()):
-        writer.writerow(["" if v is None else repr(v) if isinstance(v, float) else v for v in row])
-
-
-def _write_atomically(path: Path, write, *, text: bool = False) -> None:
-    """Write through a temporary file in the same folder, then rename: no half-written exports."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with open(fd, "w" if text else "wb", newline="" if text else None) as f:
-            write(f)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def _bits_differ(asked: Any, stored: np.ndarray, what: str) -> str | None:
-    """Why ``asked`` is not bit for bit ``stored``, or None when it is."""
-    asked = np.asarray(asked, dtype=np.float64)
-    if asked.shape != stored.shape:
-        return f"{what} has shape {asked.shape}, the store holds {stored.shape}"
-    if asked.astype(_ARRAY_DTYPE).tobytes() == stored.astype(_ARRAY_DTYPE).tobytes():
-        return None
-    gap = np.abs(asked - stored)
-    j = int(np.nanargmax(gap)) if np.any(np.isfinite(gap)) else 0
-    return f"{what} differs (largest difference {gap.flat[j]:.3g} at entry {j})"
-
-
-def replay(learner: AskTellLearner, store: RunStore, run_id: int) -> int:
-    """Bring a fresh learner to where a stored run stopped (exact resume).
-
-    For each stored trial in index order (Alg. 1 replayed): ``p = learner.ask()`` must equal the
-    stored proposal bit for bit (index, step, round, w, theta); a told trial is then told to the
-    learner again. A final pending trial stays pending: the learner has asked it, so its next
-    ``ask()`` returns it again and the loop executes it as if nothing had happened.
-
-    The learner must be deterministic given its seed and freshly constructed with the run's task,
-    method, seed and configuration. Returns the number of outcomes told.
-    """
-    records = store.trials(run_id)
-    told = 0
-    for i, record in enumerate(records):
-        problem = None
-        try:
-            asked = learner.ask()
-        except CorlError as exc:
-            problem = f"the learner raised {type(exc).__name__} ({exc}) instead of proposing it"
-        else:
-            stored = record.proposal
-            if (asked.index, asked.step, asked.round) != (stored.index, stored.step, stored.round):
-                problem = (f"the learner proposed trial {asked.index} ({asked.step!r}, round {asked.round}), "
-                           f"the store holds trial {stored.index} ({stored.step!r}, round {stored.round})")
-            else:
-                problem = _bits_differ(asked.w, stored.w, "w") or _bits_differ(asked.theta, stored.theta, "theta")
-        if problem is not None:
-            raise StoreError(_mismatch_message(store, run_id, i, problem))
-        if record.outcome is None:
-            if i != len(records) - 1:
-                raise StoreError(f"trial {i} of run {run_id} is pending but later trials exist; the store is damaged")
-            break
-        learner.tell(record.outcome)
-        told += 1
-    return told
-
-
-def _mismatch_message(store: RunStore, run_id: int, i: int, problem: str) -> str:
-    run = store.run(run_id)
-    message = (
-        f"the store's run does not match this learner's configuration at trial {i}: {problem}. "
-        f"Resume run {run_id} with a fresh learner built like the original: task {run.task!r}, "
-        f"method {run.method!r}, seed {run.seed} and the stored configuration (`corl runs` shows it)"
-    )
-    changed = version_differences(run.versions, library_versions())
-    if changed:
-        message += "; the software also differs from the run's, which can change results: " + ", ".join(changed)
-    return message

@@ -1,0 +1,33 @@
+"""The run store: every trial of a run, committed to SQLite before the learning loop moves on.
+
+On a real robot a trial costs minutes, so the store never loses, repeats or corrupts one:
+
+- every write (one proposal, one outcome, one run) is one transaction, ``BEGIN IMMEDIATE ...
+  COMMIT``, in WAL mode with ``synchronous=FULL``: a process killed at any moment leaves the old
+  or the new state, never half a trial, and a call that returned has reached the disk;
+- one writer at a time: a writing :class:`RunStore` holds an exclusive lock on the sibling file
+  ``<store>.lock`` for its whole life. The kernel releases the lock when the process exits or is
+  killed, so a crashed run never blocks its own resume. Readers (``readonly=True``) open at any
+  time and see the last committed state;
+- arrays are stored as raw little-endian float64 bytes beside their shape (never pickled), so they
+  come back bit for bit;
+- :func:`replay` resumes a run exactly: a fresh deterministic learner is asked again for every
+  stored trial, must propose the very same trial, and is told every stored outcome.
+
+A run's trials form a prefix: indices 0, 1, ..., d-1 without gaps, every outcome belongs to a
+stored proposal, and only the last trial may be pending (asked, not yet told).
+
+Schema (format 1; ``PRAGMA user_version`` and ``meta.format_version`` hold the format)
+------------------------------------------------------------------------------------------
+meta(key, value)                                       format_version, created, created_by
+runs(id, created, task, method, seed, config, versions, status)    config, versions: JSON
+trials(run_id, trial_index, step, round, w, w_shape, theta, theta_shape, proposed_at)
+outcomes(run_id, trial_index, success, return_, info, told_at)     return_ NULL when unobserved
+``w``, ``theta``: float64 little-endian bytes; ``*_shape``: JSON list; times: ISO 8601 UTC.
+"""
+
+from corl.store.records import RunInfo, RunStatus, StoreError, TrialRecord
+from corl.store.resume import AskTellLearner, replay
+from corl.store.sqlite import APPLICATION_ID, FORMAT_VERSION, RunStore
+
+__all__ = ["FORMAT_VERSION", "RunInfo", "RunStatus", "RunStore", "StoreError", "TrialRecord", "replay"]

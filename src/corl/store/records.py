@@ -1,0 +1,106 @@
+"""What the run store holds: its error type, run and trial records, and how values are encoded.
+
+Arrays are stored as raw little-endian float64 bytes beside their JSON shape (never pickled), so
+they come back bit for bit; configurations and infos are stored as JSON text.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from enum import Enum
+from typing import Any
+
+import numpy as np
+
+from corl.errors import CorlError, InputError
+from corl.problem import Outcome, Proposal
+
+_ARRAY_DTYPE = np.dtype("<f8")
+
+
+class StoreError(CorlError):
+    """The run store cannot do what was asked (damaged file, second writer, trial told twice, ...)."""
+
+
+class RunStatus(str, Enum):
+    """Where a run stands; a running run can be resumed, a finished one is only read."""
+
+    RUNNING = "running"
+    FINISHED = "finished"
+
+
+@dataclass(frozen=True)
+class RunInfo:
+    """One run as listed by ``corl runs``; ``n_trials`` proposals stored, ``n_told`` of them told."""
+
+    id: int
+    created: str
+    task: str
+    method: str
+    seed: int | None
+    config: dict[str, Any]
+    versions: dict[str, str]
+    status: RunStatus
+    n_trials: int
+    n_told: int
+
+
+@dataclass(frozen=True, eq=False)
+class TrialRecord:
+    """A stored trial: its proposal and, once told, its outcome (None while pending)."""
+
+    proposal: Proposal
+    outcome: Outcome | None
+    proposed_at: str
+    told_at: str | None
+
+    @property
+    def index(self) -> int:
+        return self.proposal.index
+
+
+def _now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="microseconds")
+
+
+def _json(value: Any, *, what: str) -> str:
+    """JSON text of ``value``; numpy scalars and arrays become numbers and lists."""
+
+    def plain(obj: Any) -> Any:
+        if isinstance(obj, (np.generic, np.ndarray)):
+            return obj.tolist()
+        raise TypeError(f"a {type(obj).__name__} is not JSON-serializable")
+
+    try:
+        return json.dumps(value, default=plain)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{what} must be JSON-serializable to be stored: {exc}") from None
+
+
+def _encode_array(value: Any, *, what: str) -> tuple[bytes, str]:
+    """Little-endian float64 bytes and JSON shape of an array, e.g. ``w``: (n,)."""
+    try:
+        arr = np.ascontiguousarray(value, dtype=_ARRAY_DTYPE)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{what} must be an array of numbers to be stored: {exc}") from None
+    return arr.tobytes(), json.dumps(list(arr.shape))
+
+
+def _decode_array(blob: bytes, shape_json: str, *, what: str) -> np.ndarray:
+    shape = tuple(json.loads(shape_json))
+    if len(blob) != _ARRAY_DTYPE.itemsize * int(np.prod(shape, dtype=np.int64)):
+        raise StoreError(f"{what} has {len(blob)} bytes, which does not fit its shape {shape}; the store is damaged")
+    return np.frombuffer(blob, dtype=_ARRAY_DTYPE).astype(np.float64).reshape(shape)
+
+
+def _as_int(value: Any, *, what: str, minimum: int | None = None) -> int:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise InputError(f"{what} must be an integer, got {value!r}")
+    value = int(value)
+    if minimum is not None and value < minimum:
+        raise InputError(f"{what} must be at least {minimum}, got {value}")
+    if not -(2**63) <= value < 2**63:
+        raise InputError(f"{what} is {value}, outside the 64-bit range a store holds")
+    return value

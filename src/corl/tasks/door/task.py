@@ -1,0 +1,203 @@
+"""The PR2 door task of Sec. VIII-B as a :class:`corl.problem.Task`.
+
+Glossary
+--------
+w       : (n,) B-spline control points of the reference over 8 DoF (7 arm joints + gripper width),
+          time-major ``w.reshape(P, 8)``; P = 150 gives n = 1200 (Sec. V-A)
+theta   : (2,) (finger position along the handle relative to the demonstration, m;
+          finger opening width, m) (Sec. VIII-B)
+t_c     : the grasp time; the contact constraints hold at the demonstration's contact waypoints
+          (the grasp, pressing the handle, pulling the door), each moved with the handle
+h       : Eq. 6 over the contact interval: at each contact time t_k the contact point (between the
+          fingertip pads) sits on the bar at ``r0 + theta[0]`` from the pivot, the palm has the
+          demonstration's orientation (weighted 0.3 m/rad), and the gripper width is ``theta[1]``
+          from the closing on; plus the start configuration held fixed
+J       : squared joint accelerations of the reference (Eq. 9), sum over K time steps
+R       : ``1 - F / 20 N``, F the mean interaction force at the wrist while the hand works the
+          handle (less force is better; order 1)
+S       : the door opened past 0.3 rad and the hand kept hold of the handle
+"""
+
+from __future__ import annotations
+
+import math
+from functools import cached_property
+
+import numpy as np
+
+from corl.errors import InputError
+from corl.problem import Bounds, Demonstration, Outcome
+from corl.tasks.door.demo import CONTROL_DT, DEMO_GRASP_R, DEMO_WIDTH, grasp_rotation, scripted_demonstration
+from corl.trajectory.bspline import BSpline
+from corl.trajectory.features import TaskSpaceFeature, TrajectoryProblem, acceleration_feature, configuration_feature
+
+__all__ = ["DoorTask", "FORCE_REFERENCE"]
+
+FORCE_REFERENCE = 20.0  # N: R = 1 - F / FORCE_REFERENCE
+ROT_WEIGHT = 0.3        # m per rad of palm orientation error in h
+EPS_MAX = 0.5           # rad: trust region of one optimization step (Eq. 8), ||w_{i+1} - w_i||
+
+
+class DoorTask:
+    """Open the door from one scripted demonstration (see the module docstring).
+
+    Parameters
+    ----------
+    num_control_points : P (150 in the paper).
+    num_steps : K, time steps of the acceleration cost (Eq. 9).
+    """
+
+    name = "door"
+    theta_bounds = Bounds(np.array([-0.025, 0.008]), np.array([0.125, 0.028]))
+    w_bounds = None
+    theta_labels = ("grasp shift along the handle (m)", "finger width (m)")
+
+    def __init__(self, *, num_control_points: int = 150, num_steps: int = 250) -> None:
+        from corl.tasks.door.kinematics import Kinematics
+        from corl.tasks.door.scene import load_scene
+
+        self.scene = load_scene()
+        self.kin = Kinematics(self.scene)
+        self.demo = scripted_demonstration(self.scene)
+        self.duration = float(self.demo.duration)
+        self.t_contact = float(self.demo.t_contact)
+        self.spline = BSpline(num_control_points, 8, duration=self.duration)
+        self.num_steps = int(num_steps)
+        self._cost = TrajectoryProblem(self.spline.n, costs=[acceleration_feature(self.spline, self.num_steps)])
+        self._constraints: dict[bytes, TrajectoryProblem] = {}
+        # Eq. 6 over the whole interaction: the approach above the bar, the pre-grasp, the closing,
+        # pressing and pulling; every waypoint after the start moves with theta
+        self.contacts = [wp for wp in self.demo.waypoints if wp.time > 0.0]
+        self.contact_times = np.array([wp.time for wp in self.contacts])
+
+    # -- the demonstration --------------------------------------------------------------------------
+    @cached_property
+    def _demo_w(self) -> np.ndarray:
+        t = np.arange(int(round(self.duration / CONTROL_DT)) + 1) * CONTROL_DT
+        return self.spline.fit(t, self.demo.reference(CONTROL_DT))
+
+    def demonstration(self) -> Demonstration:
+        """The scripted demonstration as B-spline control points, and its theta = (0, width)."""
+        w0 = self._demo_w.copy()
+        return Demonstration(w0, self.theta_of(w0))
+
+    # -- analytic cost and projection -----------------------------------------------------------
+    def cost_residuals(self, w: np.ndarray):
+        """Residuals of Eq. 9 (squared accelerations), sparse Jacobian (K-1) 8 x n."""
+        return self._cost.residuals(w)
+
+    def _fk(self, wp, theta):
+        rot_target = grasp_rotation(wp.phi, wp.alpha)
+        kin, scene = self.kin, self.scene
+        import mujoco
+
+        jac_rot = np.zeros((3, scene.model.nv))
+
+        def fk(q):
+            pos, jac = kin.contact_point_jacobian(q)
+            mujoco.mj_jacBody(scene.model, kin.data, None, jac_rot, scene.wrist_body)
+            rot = kin.data.xmat[scene.wrist_body].reshape(3, 3)
+            from corl.tasks.door.kinematics import rotation_error
+
+            y = np.concatenate([pos, -ROT_WEIGHT * rotation_error(rot_target, rot), [q[7]]])
+            J = np.zeros((7, 8))
+            J[:3] = jac
+            J[3:6, :7] = ROT_WEIGHT * jac_rot[:, scene.arm_dof]
+            J[6, 7] = 1.0
+            return y, J
+
+        return fk
+
+    def _targets(self, wp, theta) -> np.ndarray:
+        r = wp.r + float(theta[0])
+        point = self.scene.handle_point(r, wp.phi, wp.alpha) - wp.backoff * grasp_rotation(wp.phi, wp.alpha)[:, 0]
+        width = float(theta[1]) if wp.width == DEMO_WIDTH else wp.width  # closed from t_c on
+        return np.concatenate([point, np.zeros(3), [width]])
+
+    def _constraint_problem(self, theta: np.ndarray) -> TrajectoryProblem:
+        key = np.asarray(theta, dtype=float).tobytes()
+        problem = self._constraints.get(key)
+        if problem is None:
+            q0 = self._demo_w[:8]  # the first control point is the start configuration (clamped)
+            eqs = [configuration_feature(self.spline, 0.0, q0)]
+            for wp in self.contacts:
+                eqs.append(TaskSpaceFeature(self.spline, self._fk(wp, theta), [wp.time], self._targets(wp, theta)))
+            problem = TrajectoryProblem(self.spline.n, costs=[acceleration_feature(self.spline, 4)], equalities=eqs)
+            if len(self._constraints) > 64:
+                self._constraints.clear()
+            self._constraints[key] = problem
+        return problem
+
+    def projection(self, w: np.ndarray, theta: np.ndarray):
+        """Eq. 6 over the contact interval and the fixed start: h (q,), sparse dh/dw (q, n)."""
+        theta = np.asarray(theta, dtype=float).reshape(2)
+        return self._constraint_problem(theta).equalities(w)
+
+    def theta_of(self, w: np.ndarray) -> np.ndarray:
+        """Grasp position along the lever (relative to the demonstration) and width at t_c."""
+        q = self.spline.positions(w, [self.t_contact])[0]
+        p = self.kin.contact_point(q)
+        wp = next(wp for wp in self.contacts if wp.time == self.t_contact)
+        # at the grasp the door and handle are at rest: handle_point(r) = pivot - r * y_axis
+        along = float(self.scene.pivot_world[1] - p[1])
+        return np.array([along - wp.r, float(q[7])])
+
+    @cached_property
+    def projection_metric(self):
+        """Eq. 18 in an acceleration-weighted metric, ``L = [A / 100; 0.1 I]``: the trajectory that
+        realises a new theta is the closest one in smoothness, so the whole approach and pull shift
+        with the grasp instead of bending only at the constrained instants."""
+        import scipy.sparse as sp
+
+        A = acceleration_feature(self.spline, self.num_steps).A
+        return sp.vstack([A * 1e-2, 0.1 * sp.identity(self.spline.n)]).tocsr()
+
+    def method_settings(self):
+        """The paper's hyperparameters for the door (Sec. VIII-B)."""
+        from corl.experiments.methods import MethodSettings
+        from corl.learner import CORLConfig
+        from corl.optimizers.gpconfig import DOOR_CLASSIFIER, DOOR_REGRESSION
+
+        corl = CORLConfig(eps_max=EPS_MAX, eps_w=1e-5, eps_theta=0.003, max_rounds=3,
+                          max_optimization_steps=60, max_rl_trials=60)
+        return MethodSettings(regression=DOOR_REGRESSION, classifier=DOOR_CLASSIFIER, corl=corl,
+                              rl_budget=60, direct_budget=150)
+
+    # -- the black box ---------------------------------------------------------------------------
+    def reference(self, w: np.ndarray, rate: float = 1.0 / CONTROL_DT):
+        """Times (N,) and joint references (N, 8) of ``w`` at ``rate`` Hz (what the robot tracks)."""
+        t = np.arange(int(round(self.duration * rate)) + 1) / rate
+        return t, self.spline.positions(w, np.minimum(t, self.duration))
+
+    def simulate(self, w: np.ndarray, **kwargs):
+        from corl.tasks.door.sim import rollout
+
+        _, q = self.reference(w)
+        if not np.all(np.isfinite(q)):
+            raise InputError("the reference trajectory contains NaN or inf")
+        return rollout(q, duration=self.duration, t_contact=self.t_contact, scene=self.scene, **kwargs)
+
+    def rollout(self, w: np.ndarray) -> Outcome:
+        """Track ``w`` in MuJoCo: R from the wrist force, S from the door angle and the grip."""
+        result = self.simulate(w)
+        info = {"hinge_final": result.hinge_final, "force_mean": result.force_mean,
+                "force_max": result.force_max, "held": result.held, "t_release": result.t_release,
+                "handle_max": result.handle_max}
+        info = {k: (float(v) if isinstance(v, (float, np.floating)) and math.isfinite(v) else
+                    (bool(v) if isinstance(v, (bool, np.bool_)) else None)) for k, v in info.items()}
+        if not result.success:
+            return Outcome(False, None, info)
+        return Outcome(True, 1.0 - result.force_mean / FORCE_REFERENCE, info)
+
+    # -- for people -----------------------------------------------------------------------------
+    def render_comparison(self, w_demo: np.ndarray, w_learned: np.ndarray, path) -> str:
+        """An MP4 of the demonstration (left) beside the learned motion (right), captioned."""
+        from corl.tasks.door.video import caption, render_rollout, write_side_by_side
+
+        panels = []
+        for name, w in (("demonstration", w_demo), ("learned", w_learned)):
+            frames, result = render_rollout(self.reference(w)[1], t_contact=self.t_contact)
+            r, _ = self.cost_residuals(w)
+            panels.append(caption(frames, f"{name}: J = {r @ r:.0f}, force {result.force_mean:.1f} N, "
+                                          f"door {np.degrees(result.hinge_final):.0f} deg"))
+        return str(write_side_by_side(path, *panels))
