@@ -9,7 +9,7 @@ export OPENBLAS_NUM_THREADS ?= 1
 export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
-.PHONY: demo test test-fast bench clean
+.PHONY: demo test test-fast bench synthetic clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -18,13 +18,16 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(VENV)/bin/corl bench synthetic --starts 100 --seed 0 --out results/synthetic
+	MUJOCO_GL=egl $(VENV)/bin/corl run door --seed 0 --out results/door
 
 test: $(STAMP)
 	$(PY) -m pytest -q
 
 test-fast: $(STAMP)
 	$(PY) -m pytest -q -m "not slow"
+
+synthetic: $(STAMP)
+	$(VENV)/bin/corl bench synthetic --starts 100 --seed 0 --out results/synthetic
 
 bench: $(STAMP)
 	$(PY) benchmarks/pibu_speed.py

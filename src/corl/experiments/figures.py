@@ -52,7 +52,7 @@ def plot_learning_curve(learner, path: str | Path, *, title: str = "Motion optim
     ax.scatter(xs, ys, c=colors, s=12, zorder=2)
     for x, n in marks:
         ax.axvline(x, color="tab:red", ls="--", lw=1)
-        ax.annotate(f"RL over theta: {n} trials", (x, max(ys)), rotation=90, va="top", ha="right",
+        ax.annotate(f"RL over theta: {n} trials", (x, min(ys)), rotation=90, va="bottom", ha="right",
                     fontsize=8, color="tab:red")
     ax.set_yscale("log")
     ax.set_xlabel("iteration (rollouts of the optimization step)")

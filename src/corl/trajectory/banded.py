@@ -116,10 +116,16 @@ class SupportGram:
     control points active at the constraint times, so it is stored as ``G`` (s, s) on ``support``.
     """
 
-    __slots__ = ("support", "G", "n")
+    __slots__ = ("support", "G", "n", "pairs")
 
-    def __init__(self, support: np.ndarray, G: np.ndarray, n: int) -> None:
+    def __init__(self, support: np.ndarray, G: np.ndarray, n: int, pairs: tuple | None = None) -> None:
         self.support, self.G, self.n = support, G, n
+        # (rows, cols) of the lower-triangle entries of G that some row of J touches (the others
+        # are structurally zero: a start and a goal constraint do not couple start and goal).
+        if pairs is None:
+            rows, cols = np.nonzero(np.tril(G != 0.0))
+            pairs = (rows, cols)
+        self.pairs = pairs
 
     @classmethod
     def from_jacobian(cls, J, scale: float = 1.0) -> SupportGram:
@@ -133,7 +139,9 @@ class SupportGram:
             support = np.unique(J.indices)
             dense = J.toarray()
         Js = dense[:, support]
-        return cls(support, scale * (Js.T @ Js), n)
+        touched = (Js != 0.0).astype(float)
+        rows, cols = np.nonzero(np.tril(touched.T @ touched))  # structural pattern of Js^T Js
+        return cls(support, scale * (Js.T @ Js), n, (rows, cols))
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -144,14 +152,14 @@ class SupportGram:
         return np.diagonal(self.G)
 
     def __mul__(self, c: float) -> SupportGram:
-        return SupportGram(self.support, c * self.G, self.n)
+        return SupportGram(self.support, c * self.G, self.n, self.pairs)
 
     __rmul__ = __mul__
 
     def added_to(self, H: BandedSPD) -> BandedSPD:
         """A new :class:`BandedSPD` ``H + self`` (the band widens when the block does not fit)."""
         s = self.support
-        rows, cols = np.nonzero(s[:, None] >= s[None, :])  # lower triangle of the block
+        rows, cols = self.pairs  # lower triangle of the block (support is sorted)
         offset = s[rows] - s[cols]
         need = int(offset.max()) if offset.size else 0
         ab = _widened(H.ab, max(need, H.bandwidth))

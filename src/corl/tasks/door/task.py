@@ -35,7 +35,7 @@ __all__ = ["DoorTask", "FORCE_REFERENCE"]
 
 FORCE_REFERENCE = 20.0  # N: R = 1 - F / FORCE_REFERENCE
 ROT_WEIGHT = 0.3        # m per rad of palm orientation error in h
-EPS_MAX = 0.5           # rad: trust region of one optimization step (Eq. 8), ||w_{i+1} - w_i||
+EPS_MAX = 0.1           # rad: trust region of one optimization step (Eq. 8), ||w_{i+1} - w_i||
 
 
 class DoorTask:

@@ -19,11 +19,11 @@ def _camera(scene):
 
     cam = mujoco.MjvCamera()
     cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-    # over the robot's right shoulder onto the handle, so the grasp is not hidden by the door
-    cam.lookat[:] = np.asarray(scene.pivot_world) + np.array([-0.1, 0.0, -0.05])
-    cam.distance = 1.5
-    cam.azimuth = 60.0
-    cam.elevation = -30.0
+    # from the robot's front right, slightly above: the hand on the handle and the door's swing
+    cam.lookat[:] = np.asarray(scene.pivot_world) + np.array([-0.1, 0.0, 0.0])
+    cam.distance = 1.3
+    cam.azimuth = -60.0
+    cam.elevation = -25.0
     return cam
 
 

@@ -1,0 +1,82 @@
+"""The door as a CORL task: Eq. 6 against the simulator, Eq. 18, and a short learning run."""
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def task():
+    from corl.tasks.door.task import DoorTask
+
+    return DoorTask()
+
+
+def test_demonstration_succeeds_and_satisfies_h(task):
+    demo = task.demonstration()
+    assert demo.w.shape == (1200,)
+    h, Jh = task.projection(demo.w, demo.theta)
+    assert np.abs(h).max() < 2e-3  # the B-spline fit of the jerky demonstration hits its waypoints
+    out = task.rollout(demo.w)
+    assert out.success and 0.0 < out.return_ < 1.0
+
+
+def test_projection_jacobian_matches_finite_differences(task):
+    demo = task.demonstration()
+    theta = np.array([0.03, 0.014])
+    h, Jh = task.projection(demo.w, theta)
+    rng = np.random.default_rng(0)
+    d = rng.normal(size=demo.w.shape) * 1e-6
+    h2, _ = task.projection(demo.w + d, theta)
+    np.testing.assert_allclose(h2 - h, Jh @ d, rtol=1e-3, atol=1e-9)
+
+
+def test_h_matches_where_the_fingers_touch_the_handle(task):
+    import mujoco
+
+    demo = task.demonstration()
+    contacts = []
+
+    def at_grasp(t, data):
+        if abs(t - 2.0) < 1e-9:
+            scene = task.scene
+            for c in data.contact[: data.ncon]:
+                pair = {int(c.geom1), int(c.geom2)}
+                if pair & set(scene.tip_geoms) and pair & set(scene.handle_geoms):
+                    contacts.append(np.array(c.pos))
+
+    task.simulate(demo.w, on_frame=at_grasp, frame_every=1)
+    assert contacts, "no finger touches the handle at t = 2 s"
+    touch = np.mean(contacts, axis=0)
+    q = task.spline.positions(demo.w, [2.0])[0]
+    predicted = task.kin.contact_point(q)
+    assert np.linalg.norm(touch - predicted) < 0.02  # the pads' midpoint is where the bar is held
+    theta = task.theta_of(demo.w)
+    np.testing.assert_allclose(theta, demo.theta)
+
+
+def test_eq18_realises_a_new_theta_and_keeps_the_grasp(task):
+    from corl.learner import CORL
+
+    demo = task.demonstration()
+    learner = CORL(task, lambda b, x0, rng: None)
+    theta = np.array([0.05, 0.016])
+    result = learner._realise(demo.w, demo.theta, theta)
+    assert result.constraint_error < 1e-5
+    np.testing.assert_allclose(task.theta_of(result.w), theta, atol=1e-3)
+    out = task.rollout(result.w)
+    assert out.success
+
+
+def test_short_learning_run_improves_J_and_keeps_success(task):
+    from corl.experiments.methods import make_method
+    from corl.learner import cost_of
+
+    learner = make_method("CORL+PIBU", task, seed=0)
+    learner.run(max_trials=6)  # demonstration + motion-optimization steps
+    steps = [(p, o) for p, o in learner.history if p.step == "optimization"]
+    assert steps and all(o.success for _, o in steps)
+    J0 = cost_of(task, learner.history[0][0].w)
+    assert learner.best.J < 0.5 * J0
+    assert all(np.linalg.norm(b.w - a.w) <= 0.1 + 1e-9 for (a, _), (b, _) in zip(learner.history, learner.history[1:]))
