@@ -24,6 +24,8 @@ CORL = [sys.executable, "-m", "corl.cli"]
 def trials_of(path):
     with RunStore(path, readonly=True) as db:
         run = db.latest_run()
+        if run is None:  # killed after creating the file, before the run's first commit
+            return [], None
         return [(t.index, t.proposal.step, t.proposal.w.tobytes(), t.proposal.theta.tobytes(),
                  None if t.outcome is None else (t.outcome.success, t.outcome.return_))
                 for t in db.trials(run.id)], run.status.value

@@ -14,7 +14,8 @@ from typing import Callable
 
 import numpy as np
 
-from corl.errors import InputError, RolloutError, StateError
+from corl.errors import InputError, StateError
+from corl.loop import drive
 from corl.learner import Best, cost_of
 from corl.numerics import as_vector
 from corl.optimizers.base import BlackBoxOptimizer
@@ -80,20 +81,5 @@ class DirectSearch:
 
     def run(self, task: Task | None = None, *, max_trials: int | None = None,
             callback: Callable[[Proposal, Outcome], None] | None = None) -> Best | None:
-        task = task or self.task
-        count = 0
-        while not self.done and (max_trials is None or count < max_trials):
-            try:
-                proposal = self.ask()
-            except StateError:
-                break
-            try:
-                outcome = task.rollout(proposal.w)
-            except Exception as exc:
-                raise RolloutError(f"the rollout of trial {proposal.index} raised {type(exc).__name__}: {exc}; "
-                                   "the trial stays pending") from exc
-            self.tell(outcome)
-            count += 1
-            if callback is not None:
-                callback(proposal, outcome)
+        drive(self, task or self.task, max_trials=max_trials, callback=callback)
         return self.best

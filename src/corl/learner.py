@@ -38,7 +38,8 @@ from typing import Callable, Generator, Iterator
 
 import numpy as np
 
-from corl.errors import DemonstrationFailedError, InputError, RolloutError, StateError
+from corl.errors import DemonstrationFailedError, InputError, StateError
+from corl.loop import drive
 from corl.numerics import as_vector
 from corl.optimizers.base import BlackBoxOptimizer
 from corl.problem import Bounds, Outcome, Proposal, Task, check_theta
@@ -160,24 +161,7 @@ class CORL:
     def run(self, task: Task | None = None, *, max_trials: int | None = None,
             callback: Callable[[Proposal, Outcome], None] | None = None) -> Best | None:
         """Convenience loop: ask, ``task.rollout(w)``, tell, until done or ``max_trials``."""
-        task = task or self.task
-        count = 0
-        while not self.done and (max_trials is None or count < max_trials):
-            proposal = self.ask()
-            try:
-                outcome = task.rollout(proposal.w)
-            except Exception as exc:
-                raise RolloutError(
-                    f"the rollout of trial {proposal.index} ({proposal.step}) raised {type(exc).__name__}: {exc}. "
-                    "The trial stays pending: fix the task and call run() again, or tell() its outcome"
-                ) from exc
-            if not isinstance(outcome, Outcome):
-                raise RolloutError(f"task.rollout must return a corl.Outcome, got {type(outcome).__name__}; "
-                                   f"trial {proposal.index} stays pending")
-            self.tell(outcome)
-            count += 1
-            if callback is not None:
-                callback(proposal, outcome)
+        drive(self, task or self.task, max_trials=max_trials, callback=callback)
         return self.best
 
     # -- Algorithm 1 ---------------------------------------------------------------------------

@@ -21,7 +21,8 @@ from typing import Callable
 
 import numpy as np
 
-from corl.errors import InputError, RolloutError, StateError
+from corl.errors import InputError, StateError
+from corl.loop import drive
 from corl.problem import Outcome, Proposal, Task
 from corl.store import RunStatus, RunStore, StoreError, replay
 
@@ -101,21 +102,7 @@ class StoredRun:
     def run(self, task: Task, *, max_trials: int | None = None,
             callback: Callable[[Proposal, Outcome], None] | None = None):
         """ask -> ``task.rollout`` -> tell until the learner is done (or ``max_trials``)."""
-        count = 0
-        while not self.done and (max_trials is None or count < max_trials):
-            try:
-                proposal = self.ask()
-            except StateError:
-                break
-            try:
-                outcome = task.rollout(proposal.w)
-            except Exception as exc:
-                raise RolloutError(f"the rollout of trial {proposal.index} raised {type(exc).__name__}: {exc}; "
-                                   "the trial stays pending in the store: fix the task and resume") from exc
-            self.tell(outcome)
-            count += 1
-            if callback is not None:
-                callback(proposal, outcome)
+        drive(self, task, max_trials=max_trials, callback=callback, pending_hint=" in the store")
         if self.done:
             self.store.set_status(self.run_id, RunStatus.FINISHED)
         return self.best
