@@ -10,7 +10,8 @@ Start: the least-squares B-spline fit of a scripted, non-smooth demonstration (w
 by straight lines).
 
 corl: :func:`corl.trajectory.solve` on a :class:`corl.trajectory.features.TrajectoryProblem`
-(constant banded ``2 A^T A``, banded Cholesky per Gauss-Newton step), tol_constraint 1e-6.
+(constant banded ``2 A^T A``, banded Cholesky per Newton step, constraint curvature from the
+closed-form fk Hessian), ``SolverConfig.trajectory()``: max|h| <= 1e-8.
 CasADi + Ipopt: the identical NLP (same A, same equalities, same start) with the exact Hessian,
 tol 1e-9; its time is the ``solver(...)`` call only - building the expression graph and the
 ``nlpsol`` object is excluded. Times are medians over repeats. OPENBLAS_NUM_THREADS=1 is set
@@ -21,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import time
 
@@ -28,7 +30,7 @@ os.environ["OPENBLAS_NUM_THREADS"] = "1"
 
 import numpy as np  # noqa: E402
 
-from corl.trajectory import SolverConfig, solve  # noqa: E402
+from corl.trajectory import SolverConfig, project, solve  # noqa: E402
 from corl.trajectory.bspline import BSpline  # noqa: E402
 from corl.trajectory.features import (  # noqa: E402
     TaskSpaceFeature,
@@ -42,31 +44,54 @@ Q = 7
 T = 5.0
 T_CONTACT = 0.45 * T
 AXES = "zyzyzyz"  # joint i rotates about this axis of its own frame, then the link goes along its z
-LINKS = np.array([0.33, 0.0, 0.40, 0.0, 0.39, 0.0, 0.13])
+LINKS_LIST = [0.33, 0.0, 0.40, 0.0, 0.39, 0.0, 0.13]
 OFFSET = np.array([0.05, -0.04, 0.06])  # the contact target relative to the demonstration's hand
-CONFIG = SolverConfig(tol_constraint=1e-6, tol_step=1e-10, max_iterations=500)
+CONFIG = SolverConfig.trajectory()
 
 
 # -- 7-DoF forward kinematics --------------------------------------------------------------------
-def _rotation(axis: str, c, s, lib):
-    if axis == "z":
-        return lib.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) if lib is np else (c, s)
-    return lib.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
 def fk(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Hand position y (3,) and geometric Jacobian dy/dq (3, 7): column i = a_i x (y - p_i)."""
-    R = np.eye(3)
-    p = np.zeros(3)
-    origins = np.empty((Q, 3))
+    """Hand position y (3,) and geometric Jacobian dy/dq (3, 7): column i = a_i x (y - p_i).
+
+    On Python floats (7 small rotations: numpy's per-call overhead would dominate).
+    """
+    R = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+    px = py = pz = 0.0
+    frames = []
+    for qi, axis, length in zip(q.tolist(), AXES, LINKS_LIST):
+        c, s = math.cos(qi), math.sin(qi)
+        k = 2 if axis == "z" else 1  # rotation axis = column k of R
+        frames.append((px, py, pz, R[0][k], R[1][k], R[2][k]))
+        if axis == "z":  # R <- R Rz(q): columns 0, 1 rotate
+            R = [[r[0] * c + r[1] * s, -r[0] * s + r[1] * c, r[2]] for r in R]
+        else:  # R <- R Ry(q): columns 2, 0 rotate
+            R = [[r[0] * c - r[2] * s, r[1], r[0] * s + r[2] * c] for r in R]
+        px, py, pz = px + length * R[0][2], py + length * R[1][2], pz + length * R[2][2]
+    J = [[0.0] * Q for _ in range(3)]
+    for i, (ox, oy, oz, ax, ay, az) in enumerate(frames):
+        dx, dy, dz = px - ox, py - oy, pz - oz
+        J[0][i], J[1][i], J[2][i] = ay * dz - az * dy, az * dx - ax * dz, ax * dy - ay * dx
+    return np.array([px, py, pz]), np.array(J)
+
+
+def fk_hessian(q: np.ndarray) -> np.ndarray:
+    """d^2 y / dq^2 (3, 7, 7) of the chain: entry (i, j) is a_min(i,j) x J_max(i,j), since turning
+    joint j moves the axis a_i and origin of every later joint i rigidly (a_j x), and only y otherwise."""
+    y, J = fk(q)
     axes = np.empty((Q, 3))
+    R = np.eye(3)
     for i, axis in enumerate(AXES):
-        c, s = np.cos(q[i]), np.sin(q[i])
-        origins[i] = p
         axes[i] = R[:, 2] if axis == "z" else R[:, 1]
-        R = R @ _rotation(axis, c, s, np)
-        p = p + LINKS[i] * R[:, 2]
-    return p, np.cross(axes, p - origins).T
+        c, s = math.cos(q[i]), math.sin(q[i])
+        Ri = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) if axis == "z" else np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+        R = R @ Ri
+    cols = J.T  # (7, 3)
+    a, b = axes[:, None, :], cols[None, :, :]  # cross(a_i, J_j) for all i, j: (7, 7, 3)
+    C = np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1], a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2], a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
+    return np.moveaxis(C[_LOW, _HIGH], -1, 0)
+
+
+_LOW, _HIGH = np.minimum.outer(np.arange(Q), np.arange(Q)), np.maximum.outer(np.arange(Q), np.arange(Q))
 
 
 def fk_casadi(q):
@@ -82,7 +107,7 @@ def fk_casadi(q):
         else:
             Ri = ca.vertcat(ca.horzcat(c, 0, s), ca.horzcat(0, 1, 0), ca.horzcat(-s, 0, c))
         R = ca.mtimes(R, Ri)
-        p = p + LINKS[i] * R[:, 2]
+        p = p + LINKS_LIST[i] * R[:, 2]
     return p
 
 
@@ -109,6 +134,7 @@ def build(P: int):
     dense = np.linspace(0.0, T, 4 * P)
     demo = demonstration(dense)
     w0 = spline.fit(dense, demo)
+    demo[0], demo[-1] = spline.positions(w0, [0.0, T])  # start and goal: where the fit starts and ends
     x_contact = spline.positions(w0, [T_CONTACT])[0]
     target = fk(x_contact)[0] + OFFSET
     problem = TrajectoryProblem(
@@ -117,7 +143,7 @@ def build(P: int):
         equalities=[
             configuration_feature(spline, 0.0, demo[0]),
             configuration_feature(spline, T, demo[-1]),
-            TaskSpaceFeature(spline, fk, [T_CONTACT], target),
+            TaskSpaceFeature(spline, fk, [T_CONTACT], target, fk_hessian=fk_hessian),
         ],
     )
     return spline, problem, w0, target
@@ -157,8 +183,8 @@ def casadi_solver(spline, problem, w0, target):
     Aeq = problem._eq_linear.A.tocoo()
     beq = problem._eq_linear.b
     w = ca.SX.sym("w", spline.n)
-    Ad = ca.DM(ca.Sparsity.triplet(A.shape[0], A.shape[1], A.row.tolist(), A.col.tolist()), A.data)
-    Aeqd = ca.DM(ca.Sparsity.triplet(Aeq.shape[0], Aeq.shape[1], Aeq.row.tolist(), Aeq.col.tolist()), Aeq.data)
+    Ad = ca.DM.triplet(A.row.tolist(), A.col.tolist(), A.data.tolist(), A.shape[0], A.shape[1])
+    Aeqd = ca.DM.triplet(Aeq.row.tolist(), Aeq.col.tolist(), Aeq.data.tolist(), Aeq.shape[0], Aeq.shape[1])
     r = ca.mtimes(Ad, w)
     B = spline.basis([T_CONTACT]).toarray()[0]
     active = np.flatnonzero(B)
@@ -230,6 +256,27 @@ def main() -> None:
         print(f"ratio casadi / corl: {ratio:.2f}x   (relative J difference {abs(result.cost - J_casadi) / J_casadi:.1e})")
     print(f"one Newton step (evaluate + banded H + banded Cholesky + solve): {step_ms:.3f} ms  (target < 1 ms)")
 
+    # Eq. 18 (Alg. 1, step 2): a new theta moves the contact target by ~2 cm; project w* onto it.
+    moved = TrajectoryProblem(
+        spline.n,
+        costs=[acceleration_feature(spline, 2)],
+        equalities=[
+            configuration_feature(spline, 0.0, spline.positions(w0, [0.0])[0]),
+            configuration_feature(spline, T, spline.positions(w0, [T])[0]),
+            TaskSpaceFeature(spline, fk, [T_CONTACT], target + np.array([0.01, 0.0, -0.02])),
+        ],
+    )
+    projections = []
+    for _ in range(args.repeats):
+        t0 = time.perf_counter()
+        projected = project(moved, result.w)
+        projections.append((time.perf_counter() - t0) * 1e3)
+    project_ms = float(np.median(projections))
+    print(
+        f"Eq. 18 projection of w* onto a contact moved by 2 cm (n = {spline.n}): {project_ms:.2f} ms, "
+        f"max|h| = {projected.constraint_error:.1e}, ||w - w*|| = {np.linalg.norm(projected.w - result.w):.3f}"
+    )
+
     print()
     print(f"{'P':>6}{'n':>8}{'iterations':>12}{'ms':>10}{'ms / n * 1000':>16}")
     scaling = {}
@@ -252,6 +299,7 @@ def main() -> None:
             "J_corl": result.cost,
             "J_casadi": J_casadi,
             "scaling_ms": scaling,
+            "project_ms": project_ms,
         }
         with open(args.json, "w") as fh:
             json.dump(out, fh, indent=2)

@@ -1,12 +1,40 @@
-"""Motion optimization of Sec. VI: the trust-region step of Eq. 8 and the projection of Eq. 18.
+"""Motion optimization of Sec. V-A and VI: B-spline trajectories, k-order Markov features, the
+trust-region step of Eq. 8, phase optimization (Eq. 10) and the projection of Eq. 18.
 
-:func:`solve` minimises a sum of squares ``J = r^T r`` (Eq. 7) under equality constraints
-``h(w) = 0`` and a trust region ``||w - center|| <= radius`` with an augmented Lagrangian around
-damped Gauss-Newton steps; :func:`project` is Eq. 18 (restoration and tangent steps along
-``h = 0``, with :func:`solve` as fallback). Solvers know nothing of tasks.
+:class:`BSpline` is the reference trajectory ``xi(w, t) = B(t) w`` (time-major ``w.reshape(P, Q)``);
+:mod:`corl.trajectory.features` builds squared features (Eq. 7, 9) and equality features (Eq. 6)
+with sparse Jacobians and stacks them into a :class:`TrajectoryProblem`. :func:`solve` minimises
+``J = r^T r`` under ``h(w) = 0`` and a trust region ``||w - center|| <= radius`` with an augmented
+Lagrangian around damped Gauss-Newton steps - banded Cholesky factorizations for long
+trajectories (:mod:`corl.trajectory.banded`); :func:`project` is Eq. 18. :mod:`corl.trajectory.phase`
+re-times a trajectory with fixed geometry and schedules trajectory and phase steps
+(:func:`motion_steps`). Solvers know nothing of tasks.
 """
 
+from corl.trajectory.banded import BandedSPD, SupportGram
+from corl.trajectory.bspline import BSpline
+from corl.trajectory.features import (
+    JointLimitFeature,
+    LinearFeature,
+    TaskSpaceFeature,
+    TrajectoryProblem,
+    acceleration_feature,
+    configuration_feature,
+    velocity_feature,
+)
 from corl.trajectory.linalg import factorize_spd, solve_spd, trust_region_step
+from corl.trajectory.phase import (
+    MotionStep,
+    PhaseConfig,
+    PhaseResult,
+    RetimeResult,
+    ScheduleConfig,
+    StepKind,
+    motion_steps,
+    optimize_phase,
+    phase_cost,
+    retime,
+)
 from corl.trajectory.solver import (
     DEFAULT_CONFIG,
     FunctionProblem,
@@ -30,4 +58,24 @@ __all__ = [
     "factorize_spd",
     "solve_spd",
     "trust_region_step",
+    "BandedSPD",
+    "SupportGram",
+    "BSpline",
+    "LinearFeature",
+    "JointLimitFeature",
+    "TaskSpaceFeature",
+    "TrajectoryProblem",
+    "acceleration_feature",
+    "velocity_feature",
+    "configuration_feature",
+    "PhaseConfig",
+    "PhaseResult",
+    "RetimeResult",
+    "ScheduleConfig",
+    "StepKind",
+    "MotionStep",
+    "motion_steps",
+    "optimize_phase",
+    "phase_cost",
+    "retime",
 ]

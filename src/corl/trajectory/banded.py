@@ -11,7 +11,8 @@ Glossary
 --------
 n         : size of the matrix
 u         : bandwidth, the number of sub-diagonals: ``H[i, j] = 0`` when ``|i - j| > u``
-ab        : LAPACK lower band storage, (u + 1, n): ``ab[i - j, j] = H[i, j]`` for ``0 <= i - j <= u``
+ab        : LAPACK lower band storage, (u + 1, n), Fortran order (f2py would copy a C-order array
+            at every LAPACK call): ``ab[i - j, j] = H[i, j]`` for ``0 <= i - j <= u``
 support   : sorted column indices where a sparse Jacobian has entries, (s,)
 G         : dense Gram matrix ``J[:, support]^T J[:, support]``, (s, s)
 perm      : symmetric permutation (reverse Cuthill-McKee) applied before banding, (n,)
@@ -63,7 +64,7 @@ class BandedSPD:
         return dsbmv(self.ab.shape[0] - 1, 1.0, self.ab, x, lower=1)
 
     def __mul__(self, c: float) -> BandedSPD:
-        return BandedSPD(self.ab * c)
+        return BandedSPD(np.asfortranarray(self.ab * c))
 
     __rmul__ = __mul__
 
@@ -104,8 +105,10 @@ class BandedSPD:
             u = int(offset.max()) if offset.size else 0
         elif offset.size and offset.max() > u:
             raise InputError(f"the matrix has entries {int(offset.max())} places below the diagonal, beyond u = {u}")
-        ab = np.zeros((u + 1, n))
-        np.add.at(ab, (offset, col), data)  # duplicates of a COO pattern are summed
+        ab = np.zeros((u + 1, n), order="F")
+        key = offset.astype(np.int64) * n + col  # sum duplicates of the COO pattern, then scatter
+        unique, inverse = np.unique(key, return_inverse=True)
+        ab[unique // n, unique % n] = np.bincount(inverse, weights=data, minlength=unique.shape[0])
         return cls(ab)
 
 
@@ -116,32 +119,33 @@ class SupportGram:
     control points active at the constraint times, so it is stored as ``G`` (s, s) on ``support``.
     """
 
-    __slots__ = ("support", "G", "n", "pairs")
+    __slots__ = ("support", "G", "n", "pairs", "Js")
 
-    def __init__(self, support: np.ndarray, G: np.ndarray, n: int, pairs: tuple | None = None) -> None:
-        self.support, self.G, self.n = support, G, n
+    def __init__(self, support: np.ndarray, G: np.ndarray, n: int, pairs: tuple | None = None, Js=None) -> None:
+        self.support, self.G, self.n, self.Js = support, G, n, Js
         # (rows, cols) of the lower-triangle entries of G that some row of J touches (the others
         # are structurally zero: a start and a goal constraint do not couple start and goal).
         if pairs is None:
-            rows, cols = np.nonzero(np.tril(G != 0.0))
-            pairs = (rows, cols)
+            pairs = np.nonzero(np.tril(G != 0.0))
         self.pairs = pairs
 
     @classmethod
     def from_jacobian(cls, J, scale: float = 1.0) -> SupportGram:
-        """From J: (q, n) scipy.sparse or ndarray."""
+        """From J: (q, n) scipy.sparse or ndarray; ``Js`` keeps ``J[:, support]`` (q, s) dense."""
         n = J.shape[1]
         if type(J) is np.ndarray:
-            dense = J
             support = np.flatnonzero(np.any(J != 0.0, axis=0))
+            Js = J[:, support]
         else:
-            J = J.tocsr()
+            if J.format != "csr":
+                J = J.tocsr()
             support = np.unique(J.indices)
-            dense = J.toarray()
-        Js = dense[:, support]
+            Js = np.zeros((J.shape[0], support.shape[0]))
+            rows = np.repeat(np.arange(J.shape[0]), np.diff(J.indptr))
+            np.add.at(Js, (rows, np.searchsorted(support, J.indices)), J.data)
         touched = (Js != 0.0).astype(float)
-        rows, cols = np.nonzero(np.tril(touched.T @ touched))  # structural pattern of Js^T Js
-        return cls(support, scale * (Js.T @ Js), n, (rows, cols))
+        pairs = np.nonzero(np.tril(touched.T @ touched))  # structural pattern of Js^T Js
+        return cls(support, scale * (Js.T @ Js), n, pairs, Js)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -152,7 +156,7 @@ class SupportGram:
         return np.diagonal(self.G)
 
     def __mul__(self, c: float) -> SupportGram:
-        return SupportGram(self.support, c * self.G, self.n, self.pairs)
+        return SupportGram(self.support, c * self.G, self.n, self.pairs, self.Js)
 
     __rmul__ = __mul__
 
@@ -175,8 +179,8 @@ class SupportGram:
 def _widened(ab: np.ndarray, u: int) -> np.ndarray:
     """Copy of ``ab`` with ``u + 1`` rows (zeros below)."""
     if ab.shape[0] == u + 1:
-        return ab.copy()
-    out = np.zeros((u + 1, ab.shape[1]))
+        return ab.copy(order="F")
+    out = np.zeros((u + 1, ab.shape[1]), order="F")
     out[: ab.shape[0]] = ab
     return out
 
@@ -222,7 +226,7 @@ def banded_cholesky(
     scale = float(np.mean(np.abs(ab[0]))) if ab.shape[1] else 1.0
     scale = scale if scale > 0 and np.isfinite(scale) else 1.0
     for jitter in (0.0,) + tuple(rel * scale for rel in _JITTER_LADDER):
-        shifted = ab.copy()
+        shifted = ab.copy(order="F")
         if shift or jitter:
             shifted[0] += shift + jitter
         c, info = dpbtrf(shifted, lower=1, overwrite_ab=1)

@@ -15,7 +15,7 @@ so that ``r^T r = J`` (Eq. 7).
 :class:`TrajectoryProblem` stacks cost features into one residual vector and equality features into
 one constraint vector, a :class:`~corl.trajectory.solver.LeastSquaresProblem` for
 :func:`~corl.trajectory.solver.solve`. When every cost feature is linear it also offers the constant
-``2 A^T A`` in band storage (``cost_hessian``), so the solver never forms ``Jr^T Jr`` again.
+``2 A^T A`` in band storage (``affine_cost``), so the solver never forms ``Jr^T Jr`` again.
 
 Glossary
 --------
@@ -38,7 +38,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from corl.errors import InputError, NumericalError
-from corl.trajectory.banded import BandedSPD
+from corl.trajectory.banded import BandedSPD, SupportGram
 from corl.trajectory.bspline import BSpline
 
 __all__ = [
@@ -54,6 +54,8 @@ __all__ = [
 ]
 
 ForwardKinematics = Callable[[np.ndarray], "tuple[np.ndarray, np.ndarray]"]
+
+_FD_STEP = 1.5e-8  # relative forward-difference step for d^2 y / dq^2 (about sqrt of machine epsilon)
 
 
 @runtime_checkable
@@ -194,7 +196,11 @@ class JointLimitFeature:
         above, below = x > self.hi, x < self.lo
         value = self.scale * (np.where(above, x - self.hi, 0.0) + np.where(below, x - self.lo, 0.0))
         active = (above | below).astype(float) * self.scale
-        return value, sp.csr_matrix(self.operator.multiply(active[:, None]))
+        op = self.operator
+        scaled = op.data * np.repeat(active, np.diff(op.indptr))
+        J = sp.csr_matrix((scaled, op.indices.copy(), op.indptr.copy()), shape=op.shape)
+        J.eliminate_zeros()  # rows of limits that hold
+        return value, J
 
 
 class TaskSpaceFeature:
@@ -209,6 +215,8 @@ class TaskSpaceFeature:
     fk : ``q (Q,) -> (y (d,), dy/dq (d, Q))``, forward kinematics and its Jacobian.
     times : (c,) contact times in [0, T].
     targets : (c, d) or (d,) task-space targets (one per time, or the same for all).
+    fk_hessian : optional ``q (Q,) -> d^2 y / dq^2 (d, Q, Q)``; without it :meth:`curvature`
+        differentiates ``dy/dq`` by forward differences (Q extra calls of fk per time).
 
     The value is (c d,) time-major. Only the ``(degree + 1) Q`` parameters of the control points
     active at each t_k enter its Jacobian row, so ``Jh^T Jh`` stays local (banded).
@@ -216,10 +224,12 @@ class TaskSpaceFeature:
 
     linear = False
 
-    def __init__(self, spline: BSpline, fk: ForwardKinematics, times, targets) -> None:
+    def __init__(self, spline: BSpline, fk: ForwardKinematics, times, targets, *, fk_hessian=None) -> None:
         if not callable(fk):
             raise InputError(f"fk must be callable q -> (y, dy/dq), got {fk!r}")
-        self.fk, self.Q, self.n = fk, spline.num_joints, spline.n
+        if fk_hessian is not None and not callable(fk_hessian):
+            raise InputError(f"fk_hessian must be callable q -> d2y/dq2 (d, Q, Q) or None, got {fk_hessian!r}")
+        self.fk, self.fk_hessian, self.Q, self.n = fk, fk_hessian, spline.num_joints, spline.n
         B = spline.basis(times)
         c = B.shape[0]
         self.times = np.atleast_1d(np.asarray(times, dtype=float))
@@ -270,8 +280,35 @@ class TaskSpaceFeature:
             jac[k] = np.asarray(dy, dtype=float).reshape(d, Q)
         # dh_k/dw[p Q + j] = b_kp dy_k/dq_j  (chain rule through xi(w, t_k) = B(t_k) W, Eq. 6)
         data = (jac[:, :, None, :] * self.basis_values[:, None, :, None]).reshape(-1)
-        J = sp.csr_matrix((data, self._indices, self._indptr), shape=(c * d, self.n))
+        J = sp.csr_matrix((data, self._indices.copy(), self._indptr.copy()), shape=(c * d, self.n))
         return values.reshape(-1), J
+
+    def curvature(self, w: np.ndarray, nu: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        """``sum_i nu_i d^2 h_i / dw^2`` as blocks ``[(columns (s,), block (s, s)), ...]``, one per time.
+
+        With ``M_k = sum_a nu_ka d^2 y_a / dq^2`` (Q, Q) at ``q_k = xi(w, t_k)``, the block on the
+        ``(degree + 1) Q`` parameters active at ``t_k`` is ``kron(b_k b_k^T, M_k)`` (b_k: the basis
+        values at t_k), since h is fk composed with the linear map w -> xi(w, t_k).
+        """
+        X = self.configurations(w)
+        nu = np.asarray(nu, dtype=float).reshape(X.shape[0], self.d)
+        blocks = []
+        for k in range(X.shape[0]):
+            if self.fk_hessian is not None:
+                M = np.einsum("a,aij->ij", nu[k], np.asarray(self.fk_hessian(X[k]), dtype=float))
+            else:  # forward differences of nu^T dy/dq: column j of M is d(nu^T dy/dq)/dq_j
+                base = nu[k] @ np.asarray(self.fk(X[k])[1], dtype=float)
+                eps = _FD_STEP * (1.0 + np.abs(X[k]))
+                M = np.empty((self.Q, self.Q))
+                for j in range(self.Q):
+                    q = X[k].copy()
+                    q[j] += eps[j]
+                    M[:, j] = (nu[k] @ np.asarray(self.fk(q)[1], dtype=float) - base) / eps[j]
+            M = 0.5 * (M + M.T)
+            b = self.basis_values[k]
+            cols = (self.idx[k][:, None] * self.Q + np.arange(self.Q)).reshape(-1)
+            blocks.append((cols, np.kron(np.outer(b, b), M)))
+        return blocks
 
 
 # ---------------------------------------------------------------------------------------------
@@ -311,7 +348,7 @@ class TrajectoryProblem:
             raise InputError("TrajectoryProblem needs at least one cost feature (Eq. 7)")
         self._cost_linear, self._cost_other = self._split(costs, "cost")
         self._eq_linear, self._eq_other = self._split(equalities, "equality")
-        self._hessian: BandedSPD | None = None
+        self._affine: tuple | None = None
 
     def _split(self, features: Sequence, what: str) -> tuple[LinearFeature | None, tuple]:
         for f in features:
@@ -346,19 +383,49 @@ class TrajectoryProblem:
             parts.append((np.asarray(value, dtype=float).ravel(), jac if type(jac) is sp.csr_matrix else sp.csr_matrix(jac)))
         return np.concatenate([p[0] for p in parts]), stack_csr([p[1] for p in parts], self.n)
 
+    def equality_curvature(self, w: np.ndarray, nu: np.ndarray) -> SupportGram | None:
+        """``sum_i nu_i d^2 h_i / dw^2`` (n, n) as a :class:`SupportGram`, or None when every
+        equality is linear or offers no ``curvature``; nu: (q,).
+
+        The solver adds it to the Gauss-Newton Hessian (the Lagrangian term that Gauss-Newton
+        drops), which turns its steps on a nonlinear contact constraint (Eq. 6) into Newton steps.
+        """
+        start = 0 if self._eq_linear is None else self._eq_linear.dim
+        blocks = []
+        for f in self._eq_other:
+            stop = start + f.dim
+            if hasattr(f, "curvature"):
+                blocks.extend(f.curvature(w, nu[start:stop]))
+            start = stop
+        if not blocks:
+            return None
+        if len(blocks) == 1:  # one contact time: its columns are already sorted and distinct
+            return SupportGram(blocks[0][0], blocks[0][1], self.n)
+        support = np.unique(np.concatenate([cols for cols, _ in blocks]))
+        G = np.zeros((support.shape[0], support.shape[0]))
+        for cols, block in blocks:
+            at = np.searchsorted(support, cols)
+            G[np.ix_(at, at)] += block
+        return SupportGram(support, G, self.n)
+
     def cost(self, w: np.ndarray) -> float:
         """``J(w) = r^T r`` (Eq. 7)."""
         r, _ = self.residuals(w)
         return float(r @ r)
 
-    def cost_hessian(self) -> BandedSPD | None:
-        """Constant Gauss-Newton Hessian ``2 A^T A`` of J in band storage when every cost feature is
-        linear (else None); the solver then skips forming ``Jr^T Jr`` at every iterate."""
+    def affine_cost(self) -> tuple[BandedSPD, np.ndarray] | None:
+        """``(2 A^T A, 2 A^T b)`` when every cost feature is linear (``r = A w - b``), else None.
+
+        The Gauss-Newton Hessian of J in band storage and the constant of its gradient
+        ``2 A^T A w - 2 A^T b``: the solver then never forms ``Jr^T Jr`` or ``Jr^T r`` again.
+        """
         if self._cost_other or self._cost_linear is None:
             return None
-        if self._hessian is None:
-            A = self._cost_linear.A
-            self._hessian = BandedSPD.from_sparse(2.0 * (A.T @ A).tocsr())
-            if not np.all(np.isfinite(self._hessian.ab)):
+        if self._affine is None:
+            A, b = self._cost_linear.A, self._cost_linear.b
+            H = BandedSPD.from_sparse(2.0 * (A.T @ A).tocsr())
+            c = 2.0 * (A.T @ b)
+            if not (np.all(np.isfinite(H.ab)) and np.all(np.isfinite(c))):
                 raise NumericalError("the linear cost features contain NaN or inf")
-        return self._hessian
+            self._affine = (H, c)
+        return self._affine

@@ -16,13 +16,20 @@ h, Jh      : equality constraints (q,) and their Jacobian dh/dw (q, n)
 lam, mu    : multiplier estimate (q,) and penalty weight of L_A
 g, H       : gradient (n,) and Gauss-Newton Hessian (n, n) of L_A
 grams      : per-point cache ``(2 Jr^T r, 2 Jr^T Jr, 2 Jh^T Jh)``
-JrJr       : ``2 Jr^T Jr`` given by the problem when Jr is constant (linear features, Eq. 9), or None
+affine     : ``(2 Jr^T Jr, 2 Jr^T b)`` given by a problem with affine residuals ``r = Jr w - b``, or None
 
-A problem whose residual Jacobian does not depend on w may offer ``cost_hessian()``, returning
-the constant ``2 Jr^T Jr`` (ndarray, scipy.sparse or :class:`~corl.trajectory.banded.BandedSPD`)
-or None; it is then not recomputed at every iterate. With a banded one, ``2 Jh^T Jh`` is kept as a
-:class:`~corl.trajectory.banded.SupportGram` on the few columns the constraints touch, and H stays
-banded (factorized by LAPACK ``dpbtrf``).
+A problem whose residuals are affine in w (linear features, Eq. 9) may offer ``affine_cost()``,
+returning the constant Gauss-Newton Hessian ``2 Jr^T Jr`` (ndarray, scipy.sparse or
+:class:`~corl.trajectory.banded.BandedSPD`) and ``c = 2 Jr^T b`` (n,), so that the gradient of J is
+``2 Jr^T Jr w - c``; or None. Neither is then recomputed at any iterate. With a banded Hessian,
+``2 Jh^T Jh`` is kept as a :class:`~corl.trajectory.banded.SupportGram` on the few columns the
+constraints touch and H stays banded (factorized by LAPACK ``dpbtrf``).
+
+A problem may also offer ``equality_curvature(w, nu)``, returning ``sum_i nu_i d^2 h_i / dw^2``
+(a :class:`~corl.trajectory.banded.SupportGram`, ndarray or scipy.sparse, or None): the
+Lagrangian curvature that Gauss-Newton drops. It is added to H with ``nu = lam + 2 mu h``, which
+makes the steps on nonlinear constraints Newton steps (as Ipopt's exact Hessian); H may then be
+indefinite, and the solver raises the damping until it factorizes.
 """
 
 from __future__ import annotations
@@ -49,13 +56,14 @@ class _Point:
     :func:`_gauss_newton` (filled on first use, reused when only lam or mu change).
     """
 
-    __slots__ = ("w", "r", "Jr", "h", "Jh", "rr", "hh", "err", "grams", "JrJr")
+    __slots__ = ("w", "r", "Jr", "h", "Jh", "rr", "hh", "err", "grams", "affine", "curvature")
 
-    def __init__(self, w, r, Jr, h, Jh, rr: float, hh: float, JrJr=None) -> None:
+    def __init__(self, w, r, Jr, h, Jh, rr: float, hh: float, affine=None, curvature=None) -> None:
         self.w, self.r, self.Jr, self.h, self.Jh, self.rr, self.hh = w, r, Jr, h, Jh, rr, hh
         self.err = _max_abs(h)
         self.grams: tuple | None = None
-        self.JrJr = JrJr
+        self.affine = affine
+        self.curvature = curvature  # problem.equality_curvature or None
 
 
 def _checked_pair(pair, n: int, what: str, jac_name: str) -> tuple[np.ndarray, Jacobian]:
@@ -95,8 +103,9 @@ def _evaluate(problem, w: np.ndarray) -> _Point:
         raise _non_finite("equalities", w, "check the projection constraint h(w, theta) and its domain")
     if (type(Jr) is not type(Jh)) and h.shape[0] > 0 and sp.issparse(Jr) != sp.issparse(Jh):  # mixed: go sparse
         Jr, Jh = sp.csr_matrix(Jr), sp.csr_matrix(Jh)
-    constant = getattr(problem, "cost_hessian", None)
-    return _Point(w, r, Jr, h, Jh, rr, hh, None if constant is None else constant())
+    affine = getattr(problem, "affine_cost", None)
+    curvature = getattr(problem, "equality_curvature", None) if h.shape[0] else None
+    return _Point(w, r, Jr, h, Jh, rr, hh, None if affine is None else affine(), curvature)
 
 
 def _sumsq(v: np.ndarray) -> float:
@@ -147,12 +156,12 @@ def _grams(pt: _Point) -> tuple:
     ``(G00, G01, G11)``; arrays otherwise.
     """
     Jr, Jh, q = pt.Jr, pt.Jh, pt.h.shape[0]
-    if pt.JrJr is not None:  # constant 2 Jr^T Jr from the problem (linear cost features)
+    if pt.affine is not None:  # r = Jr w - b: constant 2 Jr^T Jr and gradient 2 Jr^T Jr w - 2 Jr^T b
+        H, c = pt.affine
         JhJh = None
         if q:
-            JhJh = SupportGram.from_jacobian(Jh, 2.0) if type(pt.JrJr) is BandedSPD else 2.0 * (Jh.T @ Jh)
-        g = Jr.T @ (2.0 * pt.r)
-        grams = (np.asarray(g, dtype=float).ravel(), pt.JrJr, JhJh)
+            JhJh = SupportGram.from_jacobian(Jh, 2.0) if type(H) is BandedSPD else 2.0 * (Jh.T @ Jh)
+        grams = (np.asarray(H @ pt.w, dtype=float).ravel() - c, H, JhJh)
     elif type(Jr) is not np.ndarray:  # scipy.sparse
         grams = (
             np.asarray(Jr.T @ (2.0 * pt.r), dtype=float).ravel(),
@@ -216,8 +225,18 @@ def _gauss_newton(pt: _Point, lam: np.ndarray, mu: float) -> tuple[np.ndarray, J
         return [g0, g1], [[H[0], H[1]], [H[1], H[2]]]
     if JhJh is not None:
         lam_mu = lam + (2.0 * mu) * pt.h
-        g = g + (np.dot(lam_mu, pt.Jh) if type(pt.Jh) is np.ndarray else pt.Jh.T @ lam_mu)
+        if type(JhJh) is SupportGram:  # Jh^T lam_mu touches only the support columns
+            g = g.copy()
+            g[JhJh.support] += lam_mu @ JhJh.Js
+        else:
+            g = g + (np.dot(lam_mu, pt.Jh) if type(pt.Jh) is np.ndarray else pt.Jh.T @ lam_mu)
         H = H + mu * JhJh
+        if pt.curvature is not None:  # + sum_i (lam + 2 mu h)_i d^2 h_i / dw^2: Newton instead of Gauss-Newton
+            C = pt.curvature(pt.w, lam_mu)
+            if C is not None:
+                if type(C) is SupportGram and type(H) is not BandedSPD:
+                    C = C.toarray() if type(H) is np.ndarray else sp.csr_matrix(C.toarray())
+                H = H + C
     if type(H) is BandedSPD:
         g = np.asarray(g, dtype=float).ravel()
     elif type(H) is not np.ndarray:  # scipy.sparse

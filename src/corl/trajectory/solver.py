@@ -80,6 +80,7 @@ Jacobian = Any  # np.ndarray or scipy.sparse matrix, (rows, n)
 _ACCEPT_RATIO = 1e-4  # accept a step when the actual decrease of L_A is >= this x the predicted one
 _DAMPING_FLOOR = 1e-15  # smallest damping, relative to the largest diagonal entry of H
 _STUCK_LIMIT = 2  # outer iterations without progress before declaring the constraints unsatisfiable
+_INDEFINITE_DAMPING = 1e-6  # first damping, relative to maxdiag(H), when the curvature makes H indefinite
 _MANIFOLD_BUDGET = 60  # evaluations the manifold projection may use before project falls back on solve
 
 
@@ -215,6 +216,14 @@ class SolverConfig:
         return cls()
 
     @classmethod
+    def trajectory(cls) -> SolverConfig:
+        """B-spline trajectories with acceleration costs (Eq. 9) and contact constraints (Eq. 6):
+        max|h| <= 1e-8, a penalty 1e-4 x the relative default (the cost's Hessian scales with
+        1/dt^4, so the default penalty would dwarf it) and loose inner solves (tuned on
+        ``benchmarks/motion_opt.py``)."""
+        return cls(tol_constraint=1e-8, tol_step=1e-9, max_iterations=500, mu_init=1e-4, inner_rtol=0.3)
+
+    @classmethod
     def precise(cls) -> SolverConfig:
         """Tight tolerances (max|h| <= 1e-10) for reference solutions and tests."""
         return cls(tol_constraint=1e-10, tol_step=1e-13, max_iterations=1000, max_outer_iterations=100)
@@ -297,6 +306,7 @@ class _Run:
         self.radius = radius
         self.damping = 0.0  # set from the first Hessian
         self.damping_start = self.damping_floor = 0.0
+        self.scale = 1.0  # largest diagonal entry of the first H
         self.damping_ceiling = 0.0
         self.growth = 2.0  # Nielsen's factor for consecutive rejections
         self.iterations = 0
@@ -319,6 +329,7 @@ class _Run:
     def set_damping_scale(self, H: Jacobian) -> None:
         scale = _max_diagonal(H)
         scale = scale if scale > 0 and math.isfinite(scale) else 1.0
+        self.scale = scale
         self.damping = self.damping_start = self.config.damping_init * scale
         self.damping_floor = _DAMPING_FLOOR * scale
         self.damping_ceiling = self.config.damping_max * scale
@@ -358,7 +369,17 @@ class _Run:
             if self.iterations >= cfg.max_iterations:
                 return pt, _BUDGET
             u = None if self.center is None else pt.w - self.center
-            d, z, dn, predicted = model_step(H, g, self.damping, u, self.radius)  # predicted: decrease of L_A
+            try:
+                d, z, dn, predicted = model_step(H, g, self.damping, u, self.radius)  # predicted: decrease of L_A
+            except NumericalError:
+                if pt.curvature is None:
+                    raise
+                # Constraint curvature made H + damping I indefinite: raise the damping (inertia correction).
+                self.damping = max(self.damping * self.growth, _INDEFINITE_DAMPING * self.scale)
+                self.growth *= 2.0
+                if self.damping > self.damping_ceiling:
+                    return pt, _STALLED
+                continue
             if not math.isfinite(dn):
                 _check_gradient(g)  # a non-finite step comes from g or from H
                 raise NumericalError(

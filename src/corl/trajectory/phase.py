@@ -1,0 +1,448 @@
+"""Phase-profile optimization with fixed geometry (Sec. VI-B, Eq. 10) and the motion-step schedule.
+
+The path of ``xi(w, .)`` is kept and only its timing changes: the re-timed trajectory is
+``xi(w, p(t) T)`` for a phase profile ``p: [0, T] -> [0, 1]`` discretized at ``t_i = i dt``,
+``dt = T / K``, as ``p_0 = 0 < p_1 < ... < p_K = 1``. Eq. 10::
+
+    J(p) = sum_i ((xi(w, p_{i-1} T) - 2 xi(w, p_i T) + xi(w, p_{i+1} T)) / dt^2)^2
+         + c_p (p_{i-1} - 2 p_i + p_{i+1})^2                        (c_p = 1 in the paper)
+
+is minimised over the interior phases by :func:`corl.trajectory.solver.solve` (Gauss-Newton,
+trust region ``||p - p_prev|| <= radius``, as Eq. 8 limits w). Monotonicity
+``p_{i+1} - p_i >= delta`` is a squared-hinge penalty ``c_m max(0, delta - (p_{i+1} - p_i))^2 /
+dt^4`` in the same least-squares problem; should a tiny violation survive, a final repair raises
+each increment to ``delta / 2`` (renormalised so ``p_K = 1``), so the returned p is always
+strictly increasing. Phases at ``pinned_times`` (contact times) can be held at ``t / T`` so a
+contact stays where Eq. 6 puts it.
+
+:func:`retime` turns an optimal profile into new parameters: it samples the re-timed path and
+re-fits the B-spline control points by least squares, then (given the equalities) projects onto
+``h = 0`` with Eq. 18 and reports how much h changed.
+
+:func:`motion_steps` is the schedule of Sec. VIII-B: trajectory steps (Eq. 8, one trust-region
+solve each) until w stops moving, then phase steps until the phase stops moving - or, with
+``alternate=True``, both in turn. It yields a :class:`MotionStep` after every step, so the CORL
+learner can roll each one out (and stop iterating when one fails); it knows nothing of the learner.
+
+Glossary
+--------
+w, n       : trajectory parameters (n,), time-major (``w.reshape(P, Q)``)
+T, K, dt   : duration, number of phase intervals, ``T / K``
+p          : phase profile (K+1,), p_0 = 0, p_K = 1; ``p = t / T`` is the identity (no re-timing)
+free       : indices of the optimised interior phases (not 0, K or pinned)
+delta      : smallest allowed phase increment
+c_p, c_m   : weights of the phase-acceleration term (Eq. 10) and of the monotonicity hinge
+h          : equality constraints of the trajectory problem (Eq. 6), reported around re-fits
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+from typing import Iterator, Sequence
+
+import numpy as np
+import scipy.sparse as sp
+
+from corl.errors import InputError
+from corl.trajectory.bspline import BSpline
+from corl.trajectory.solver import SolveResult, SolverConfig, project, solve
+
+__all__ = [
+    "PhaseConfig",
+    "PhaseResult",
+    "RetimeResult",
+    "PhaseProblem",
+    "phase_cost",
+    "optimize_phase",
+    "retime",
+    "StepKind",
+    "MotionStep",
+    "ScheduleConfig",
+    "motion_steps",
+]
+
+
+@dataclass(frozen=True)
+class PhaseConfig:
+    """Settings of the phase optimization (Eq. 10).
+
+    Attributes
+    ----------
+    num_steps : K, phase intervals (K + 1 phases).
+    phase_weight : c_p, weight of the squared phase accelerations (1 in Eq. 10).
+    min_increment : delta as a fraction of the uniform increment 1 / K (0 < . < 1).
+    monotone_weight : c_m, weight of the squared-hinge monotonicity penalty (scaled by 1 / dt^4
+        like the configuration accelerations).
+    radius : trust region on the phase step, ``||p - p_prev|| <= radius`` (the eps_max of Eq. 8).
+    fit_samples_per_point : samples of the re-timed path per control point for the re-fit.
+    solver : settings of the inner Gauss-Newton solve.
+    """
+
+    num_steps: int = 100
+    phase_weight: float = 1.0
+    min_increment: float = 0.05
+    monotone_weight: float = 1e4
+    radius: float = 0.05
+    fit_samples_per_point: int = 4
+    solver: SolverConfig = field(default_factory=lambda: SolverConfig(tol_step=1e-9, max_iterations=100))
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.num_steps, (int, np.integer)) or self.num_steps < 2:
+            raise InputError(f"PhaseConfig.num_steps must be an integer >= 2, got {self.num_steps!r}")
+        for name in ("phase_weight", "monotone_weight", "radius"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise InputError(f"PhaseConfig.{name} must be a finite number >= 0, got {value!r}")
+        if not self.radius > 0:
+            raise InputError(f"PhaseConfig.radius must be positive, got {self.radius!r}")
+        if not (0 < self.min_increment < 1):
+            raise InputError(f"PhaseConfig.min_increment must be in (0, 1) (a fraction of 1/K), got {self.min_increment!r}")
+        if not isinstance(self.fit_samples_per_point, (int, np.integer)) or self.fit_samples_per_point < 2:
+            raise InputError(f"PhaseConfig.fit_samples_per_point must be an integer >= 2, got {self.fit_samples_per_point!r}")
+
+
+# ---------------------------------------------------------------------------------------------
+# Eq. 10 as a least-squares problem over the interior phases
+# ---------------------------------------------------------------------------------------------
+class PhaseProblem:
+    """Eq. 10 plus the monotonicity hinge, as a :class:`~corl.trajectory.solver.LeastSquaresProblem`
+    over the free phases ``p[free]``.
+
+    Parameters
+    ----------
+    spline, w : the trajectory whose geometry is kept; w: (n,).
+    config : :class:`PhaseConfig`.
+    pinned_times : times in (0, T) whose phase stays ``t / T`` (the nearest grid phase is pinned).
+    """
+
+    def __init__(self, spline: BSpline, w, config: PhaseConfig, pinned_times: Sequence[float] = ()) -> None:
+        self.spline, self.config = spline, config
+        self.W = spline.control_points(w)
+        K = config.num_steps
+        self.K, self.T = K, float(spline.duration)
+        self.dt = self.T / K
+        self.delta = config.min_increment / K
+        fixed = {0, K} | {int(round(float(t) / self.dt)) for t in np.atleast_1d(np.asarray(pinned_times, dtype=float))}
+        self.fixed = np.array(sorted(i for i in fixed if 0 <= i <= K))
+        self.free = np.setdiff1d(np.arange(K + 1), self.fixed)
+        if self.free.size == 0:
+            raise InputError("every phase is pinned; nothing to optimize (fewer pinned_times or more num_steps)")
+        self.identity = np.linspace(0.0, 1.0, K + 1)
+        D2 = sp.diags((1.0, -2.0, 1.0), (0, 1, 2), shape=(K - 1, K + 1), format="csr")  # rows i = 1..K-1
+        D1 = sp.diags((-1.0, 1.0), (0, 1), shape=(K, K + 1), format="csr")  # p_{i+1} - p_i, i = 0..K-1
+        self.D2, self.D1 = D2, D1
+        self.D2_x = sp.kron(D2, sp.identity(spline.num_joints), format="csr") / self.dt**2
+        self.phase_rows = math.sqrt(config.phase_weight) * D2
+        self.hinge_scale = math.sqrt(config.monotone_weight) / self.dt**2
+
+    def full(self, p_free: np.ndarray) -> np.ndarray:
+        """The whole profile (K+1,) from the free phases (fixed ones at ``t / T``)."""
+        p = self.identity.copy()
+        p[self.free] = p_free
+        return p
+
+    def residuals(self, p_free: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+        p = self.full(p_free)
+        s = np.clip(p, 0.0, 1.0) * self.T
+        X = self.spline.basis(s) @ self.W  # xi(w, p_i T): (K+1, Q)
+        V = self.spline.basis(s, 1) @ self.W  # d xi / dt at p_i T: (K+1, Q)
+        Q = X.shape[1]
+        # Eq. 10, first term: (xi(p_{i-1} T) - 2 xi(p_i T) + xi(p_{i+1} T)) / dt^2; d/dp_j = T xi'(p_j T) / dt^2.
+        r_x = self.D2_x @ X.reshape(-1)
+        dX = sp.csr_matrix(
+            (self.T * V.reshape(-1), np.repeat(np.arange(self.K + 1), Q), np.arange((self.K + 1) * Q + 1)),
+            shape=((self.K + 1) * Q, self.K + 1),
+        )
+        J_x = self.D2_x @ dX
+        # Eq. 10, second term: c_p (p_{i-1} - 2 p_i + p_{i+1})^2.
+        r_p = self.phase_rows @ p
+        # Monotonicity: c_m max(0, delta - (p_{i+1} - p_i))^2 / dt^4 (squared hinge).
+        gap = self.D1 @ p
+        short = gap < self.delta
+        r_m = self.hinge_scale * np.where(short, self.delta - gap, 0.0)
+        J_m = sp.diags(-self.hinge_scale * short.astype(float)) @ self.D1
+        r = np.concatenate([r_x, r_p, r_m])
+        J = sp.vstack([J_x, self.phase_rows, J_m], format="csc")[:, self.free]
+        return r, J.tocsr()
+
+    def equalities(self, p_free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return np.zeros(0), np.zeros((0, p_free.shape[0]))
+
+    def eq10(self, p: np.ndarray) -> float:
+        """Eq. 10 (without the hinge) for a whole profile p (K+1,)."""
+        X = self.spline.basis(np.clip(p, 0.0, 1.0) * self.T) @ self.W
+        r_x = self.D2_x @ X.reshape(-1)
+        r_p = self.phase_rows @ p
+        return float(r_x @ r_x + r_p @ r_p)
+
+
+def phase_cost(spline: BSpline, w, p, config: PhaseConfig = PhaseConfig()) -> float:
+    """Eq. 10 for the profile p (K+1,) with ``K = config.num_steps``."""
+    p = np.asarray(p, dtype=float)
+    if p.shape != (config.num_steps + 1,):
+        raise InputError(f"p has shape {p.shape}, expected ({config.num_steps + 1},) = num_steps + 1")
+    return PhaseProblem(spline, w, config).eq10(p)
+
+
+@dataclass(frozen=True)
+class PhaseResult:
+    """Outcome of :func:`optimize_phase`.
+
+    Attributes
+    ----------
+    p : (K+1,) the new profile: p_0 = 0, p_K = 1, strictly increasing.
+    cost_before, cost_after : Eq. 10 at the start profile and at p.
+    step_norm : ``||p - p_start||``.
+    repaired : True when the final monotonicity repair changed p.
+    solve : the inner :class:`~corl.trajectory.solver.SolveResult` (history per Gauss-Newton step).
+    """
+
+    p: np.ndarray
+    cost_before: float
+    cost_after: float
+    step_norm: float
+    repaired: bool
+    solve: SolveResult
+
+
+def optimize_phase(
+    spline: BSpline,
+    w,
+    p_start=None,
+    *,
+    config: PhaseConfig = PhaseConfig(),
+    pinned_times: Sequence[float] = (),
+) -> PhaseResult:
+    """One phase step: minimise Eq. 10 over p inside ``||p - p_start|| <= config.radius``.
+
+    Parameters
+    ----------
+    spline, w : the trajectory (geometry kept); w: (n,).
+    p_start : (K+1,) start and trust-region center; default the identity ``t / T``.
+    config : :class:`PhaseConfig`.
+    pinned_times : times whose phase stays ``t / T`` (e.g. contact times of Eq. 6).
+    """
+    problem = PhaseProblem(spline, w, config, pinned_times)
+    p0 = problem.identity if p_start is None else np.asarray(p_start, dtype=float)
+    if p0.shape != (config.num_steps + 1,) or abs(p0[0]) > 1e-12 or abs(p0[-1] - 1.0) > 1e-12:
+        raise InputError(f"p_start must have shape ({config.num_steps + 1},) with p_0 = 0 and p_K = 1")
+    result = solve(problem, p0[problem.free], radius=config.radius, config=config.solver)
+    p = problem.full(result.w)
+    p[problem.fixed] = p0[problem.fixed]
+    p, repaired = _monotone(p, problem.delta)
+    return PhaseResult(
+        p=p,
+        cost_before=problem.eq10(p0),
+        cost_after=problem.eq10(p),
+        step_norm=float(np.linalg.norm(p - p0)),
+        repaired=repaired,
+        solve=result,
+    )
+
+
+def _monotone(p: np.ndarray, delta: float) -> tuple[np.ndarray, bool]:
+    """Raise every increment of p (K+1,) below ``delta / 2`` to it, keeping p_0 = 0 and p_K = 1."""
+    gaps = np.diff(p)
+    floor = 0.5 * delta
+    if np.all(gaps >= floor):
+        return p, False
+    gaps = np.maximum(gaps, floor)
+    excess = gaps - floor  # take the added length back from the increments above the floor
+    gaps = floor + excess * ((1.0 - floor * gaps.shape[0]) / excess.sum())
+    return np.concatenate([[0.0], np.cumsum(gaps)[:-1], [1.0]]), True
+
+
+# ---------------------------------------------------------------------------------------------
+# Re-timing: new control points for xi(w, p(t) T)
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class RetimeResult:
+    """Outcome of :func:`retime`.
+
+    Attributes
+    ----------
+    w : (n,) parameters of the re-timed trajectory (projected onto h = 0 when equalities were given).
+    w_fit : (n,) the least-squares fit before the projection.
+    fit_error : max distance between the fitted spline and the re-timed samples.
+    h_before : ``max |h|`` of the original w; ``h_fit`` of w_fit; ``h_after`` of w (nan without equalities).
+    projection : the Eq. 18 result, or None.
+    """
+
+    w: np.ndarray
+    w_fit: np.ndarray
+    fit_error: float
+    h_before: float
+    h_fit: float
+    h_after: float
+    projection: SolveResult | None
+
+
+def retime(spline: BSpline, w, p, *, equalities=None, config: PhaseConfig = PhaseConfig()) -> RetimeResult:
+    """Control points of the re-timed path ``xi(w, p(t) T)`` (p linear between grid phases).
+
+    Samples the re-timed path at ``fit_samples_per_point * P`` times, fits the B-spline by least
+    squares (:meth:`BSpline.fit`), and, when ``equalities`` (a callable ``w -> (h, dh/dw)`` or a
+    problem) are given, projects the fit onto ``h = 0`` (Eq. 18) so the contacts still hold.
+    """
+    p = np.asarray(p, dtype=float)
+    K = p.shape[0] - 1
+    T = float(spline.duration)
+    times = np.linspace(0.0, T, config.fit_samples_per_point * spline.num_control_points)
+    phases = np.interp(times, np.linspace(0.0, T, K + 1), p)
+    samples = spline.positions(w, np.clip(phases, 0.0, 1.0) * T)
+    w_fit = spline.fit(times, samples)
+    fit_error = float(np.abs(spline.positions(w_fit, times) - samples).max())
+    nan = float("nan")
+    if equalities is None:
+        return RetimeResult(w_fit, w_fit, fit_error, nan, nan, nan, None)
+    fn = getattr(equalities, "equalities", equalities)
+    h_before = float(np.abs(fn(np.asarray(w, dtype=float))[0]).max(initial=0.0))
+    h_fit = float(np.abs(fn(w_fit)[0]).max(initial=0.0))
+    projection = project(fn, w_fit, config=SolverConfig.trajectory())
+    return RetimeResult(projection.w, w_fit, fit_error, h_before, h_fit, projection.constraint_error, projection)
+
+
+# ---------------------------------------------------------------------------------------------
+# The schedule: trajectory steps (Eq. 8), then phase steps (Eq. 10)
+# ---------------------------------------------------------------------------------------------
+class StepKind(enum.Enum):
+    """Which improvement produced a :class:`MotionStep`."""
+
+    TRAJECTORY = "trajectory"  # Eq. 8: trust-region step on w
+    PHASE = "phase"  # Eq. 10: phase step with fixed geometry, then re-fit (and Eq. 18)
+
+
+@dataclass(frozen=True)
+class MotionStep:
+    """One proposal of :func:`motion_steps`.
+
+    Attributes
+    ----------
+    kind : :class:`StepKind`.
+    index : 0, 1, ... over all steps of the run.
+    w : (n,) the proposed parameters.
+    cost : J(w) of the trajectory problem (Eq. 7); ``constraint_error``: its ``max |h(w)|``.
+    step_norm : ``||w - w_previous||``.
+    detail : the :class:`SolveResult` (trajectory step) or ``(PhaseResult, RetimeResult)`` (phase step).
+    """
+
+    kind: StepKind
+    index: int
+    w: np.ndarray
+    cost: float
+    constraint_error: float
+    step_norm: float
+    detail: object
+
+
+@dataclass(frozen=True)
+class ScheduleConfig:
+    """Settings of :func:`motion_steps`.
+
+    Attributes
+    ----------
+    radius : eps_max of Eq. 8, the trust region of each trajectory step on w.
+    tol_w : a kind of step has converged when ``||w_{i+1} - w_i|| < tol_w`` (eps_w of Alg. 1)
+        or when it no longer lowers J.
+    max_trajectory_steps, max_phase_steps : budgets per round.
+    alternate : False (the paper's experiment): trajectory steps to convergence, then phase steps
+        to convergence. True: rounds of both until neither moves (at most ``max_rounds``).
+    max_rounds : rounds when alternating.
+    phase : :class:`PhaseConfig` of the phase steps.
+    solver : :class:`SolverConfig` of the trajectory steps.
+    """
+
+    radius: float = 0.5
+    tol_w: float = 1e-4
+    max_trajectory_steps: int = 50
+    max_phase_steps: int = 20
+    alternate: bool = False
+    max_rounds: int = 10
+    phase: PhaseConfig = field(default_factory=PhaseConfig)
+    solver: SolverConfig = field(default_factory=SolverConfig.trajectory)
+
+    def __post_init__(self) -> None:
+        for name in ("radius", "tol_w"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise InputError(f"ScheduleConfig.{name} must be a positive finite number, got {value!r}")
+        for name in ("max_trajectory_steps", "max_phase_steps", "max_rounds"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, np.integer)) or value < 0:
+                raise InputError(f"ScheduleConfig.{name} must be an integer >= 0, got {value!r}")
+
+
+def motion_steps(
+    problem,
+    spline: BSpline,
+    w0,
+    *,
+    config: ScheduleConfig = ScheduleConfig(),
+    pinned_times: Sequence[float] = (),
+) -> Iterator[MotionStep]:
+    """Yield the motion-optimization proposals of Sec. VI, one per step.
+
+    Parameters
+    ----------
+    problem : the trajectory :class:`~corl.trajectory.solver.LeastSquaresProblem` (J and h, Eq. 8).
+    spline : its basis; w0: (n,) the start (the demonstration or the last w*).
+    config : :class:`ScheduleConfig`.
+    pinned_times : contact times whose phase stays fixed in the phase steps.
+
+    Yields
+    ------
+    MotionStep after every accepted trajectory or phase step. Stop iterating to stop (e.g. when a
+    rollout of the proposal fails); the generator holds no other state.
+    """
+    w = np.asarray(w0, dtype=float).copy()
+    index = 0
+    rounds = config.max_rounds if config.alternate else 1
+    for _ in range(rounds):
+        moved = False
+        for kind, budget in ((StepKind.TRAJECTORY, config.max_trajectory_steps), (StepKind.PHASE, config.max_phase_steps)):
+            for _ in range(budget):
+                step = _trajectory_step(problem, w, config) if kind is StepKind.TRAJECTORY else _phase_step(problem, spline, w, config, pinned_times)
+                if step is None:
+                    break
+                w_new, detail = step
+                cost_old, cost_new = _cost(problem, w), _cost(problem, w_new)
+                norm = float(np.linalg.norm(w_new - w))
+                if norm < config.tol_w or (kind is StepKind.TRAJECTORY and cost_new >= cost_old):
+                    break
+                w = w_new
+                moved = True
+                yield MotionStep(kind, index, w, cost_new, _error(problem, w), norm, detail)
+                index += 1
+        if not moved:
+            return
+
+
+def _trajectory_step(problem, w: np.ndarray, config: ScheduleConfig):
+    """Eq. 8: one trust-region solve around w; None when it fails."""
+    result = solve(problem, w, radius=config.radius, config=config.solver)
+    if not result.converged:
+        return None
+    return result.w, result
+
+
+def _phase_step(problem, spline: BSpline, w: np.ndarray, config: ScheduleConfig, pinned_times):
+    """Eq. 10 around the identity profile of w, re-fit and Eq. 18; None when it does not lower Eq. 10."""
+    phase = optimize_phase(spline, w, config=config.phase, pinned_times=pinned_times)
+    if not phase.cost_after < phase.cost_before:
+        return None
+    retimed = retime(spline, w, phase.p, equalities=problem, config=config.phase)
+    if retimed.projection is not None and not retimed.projection.converged:
+        return None
+    return retimed.w, (phase, retimed)
+
+
+def _cost(problem, w: np.ndarray) -> float:
+    r, _ = problem.residuals(w)
+    return float(np.dot(r, r))
+
+
+def _error(problem, w: np.ndarray) -> float:
+    h, _ = problem.equalities(w)
+    return float(np.abs(h).max(initial=0.0))

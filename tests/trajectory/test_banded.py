@@ -1,0 +1,59 @@
+"""Tests of the banded linear algebra behind factorize_spd."""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from corl.trajectory.banded import BandedCholeskyFactor, BandedSPD, SupportGram, banded_cholesky
+from corl.trajectory.linalg import SparseLUFactor, factorize_spd
+
+
+def banded_spd(n=60, u=5, seed=0):
+    rng = np.random.default_rng(seed)
+    J = sp.lil_matrix((3 * n, n))
+    for i in range(3 * n):  # each row touches u + 1 consecutive columns: J^T J has bandwidth u
+        start = rng.integers(0, n - u)
+        J[i, start : start + u + 1] = rng.normal(size=u + 1)
+    J = J.tocsr()
+    return (J.T @ J + 0.1 * sp.identity(n)).tocsr()
+
+
+def test_banded_cholesky_solve_equals_dense_solve():
+    H = banded_spd()
+    b = np.random.default_rng(1).normal(size=H.shape[0])
+    band = BandedSPD.from_sparse(H)
+    assert band.bandwidth == 5
+    x = banded_cholesky(band.ab, 0.3).solve(b)
+    np.testing.assert_allclose(x, np.linalg.solve(H.toarray() + 0.3 * np.eye(60), b), rtol=1e-10)
+    np.testing.assert_allclose(band @ b, H @ b, rtol=1e-12)
+    np.testing.assert_allclose(band.toarray(), H.toarray(), rtol=1e-14)
+
+
+def test_factorize_spd_picks_the_band_for_sparse_input_even_when_shuffled():
+    H = banded_spd(n=200, u=4, seed=2)
+    b = np.random.default_rng(3).normal(size=200)
+    factor = factorize_spd(H, 1e-3)
+    assert isinstance(factor, BandedCholeskyFactor) and factor.perm is None
+    perm = np.random.default_rng(4).permutation(200)
+    shuffled = H[perm][:, perm]
+    factor = factorize_spd(shuffled, 1e-3)  # reverse Cuthill-McKee restores a narrow band
+    assert isinstance(factor, BandedCholeskyFactor) and factor.perm is not None
+    dense = shuffled.toarray() + 1e-3 * np.eye(200)
+    np.testing.assert_allclose(factor.solve(b[perm]), np.linalg.solve(dense, b[perm]), rtol=1e-9)
+
+
+def test_factorize_spd_falls_back_to_superlu_for_a_wide_band():
+    rng = np.random.default_rng(5)
+    A = rng.normal(size=(40, 40))
+    H = sp.csr_matrix(A @ A.T + np.eye(40))
+    assert isinstance(factorize_spd(H), SparseLUFactor)
+
+
+def test_support_gram_adds_like_dense_and_widens_the_band():
+    H = banded_spd(n=50, u=3, seed=6)
+    J = sp.csr_matrix(np.vstack([np.r_[np.zeros(10), np.ones(4), np.zeros(36)], np.r_[np.zeros(44), np.arange(1.0, 7.0)]]))
+    G = SupportGram.from_jacobian(J, 2.0)
+    total = BandedSPD.from_sparse(H) + 3.0 * G
+    np.testing.assert_allclose(total.toarray(), H.toarray() + 6.0 * (J.T @ J).toarray(), atol=1e-12)
+    assert total.bandwidth == 5  # the second row spans 6 columns; no start-end coupling is stored

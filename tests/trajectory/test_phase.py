@@ -1,0 +1,106 @@
+"""Tests of the phase optimization (Eq. 10) and the motion-step schedule."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from corl.errors import InputError
+from corl.trajectory.bspline import BSpline
+from corl.trajectory.features import TrajectoryProblem, acceleration_feature, configuration_feature
+from corl.trajectory.phase import (
+    PhaseConfig,
+    ScheduleConfig,
+    StepKind,
+    motion_steps,
+    optimize_phase,
+    phase_cost,
+    retime,
+)
+
+SPLINE = BSpline(20, 2, duration=1.0)
+CONFIG = PhaseConfig(num_steps=50, radius=0.2)
+
+
+def badly_timed():
+    """Half circle traversed with speed growing linearly (s = t^2): smooth path, poor timing."""
+    t = np.linspace(0.0, 1.0, 200)
+    s = t**2
+    return SPLINE.fit(t, np.stack([np.cos(np.pi * s), np.sin(np.pi * s)], axis=1))
+
+
+def distance_to_path(points, w):
+    dense = SPLINE.positions(w, np.linspace(0.0, 1.0, 4000))
+    return np.sqrt(((points[:, None, :] - dense[None]) ** 2).sum(-1)).min(axis=1).max()
+
+
+def test_phase_step_lowers_eq10_inside_the_trust_region_and_keeps_p_monotone():
+    w = badly_timed()
+    identity = np.linspace(0.0, 1.0, 51)
+    result = optimize_phase(SPLINE, w, config=CONFIG)
+    assert result.cost_before == pytest.approx(phase_cost(SPLINE, w, identity, CONFIG))
+    assert result.cost_after < 0.9 * result.cost_before
+    assert result.cost_after == pytest.approx(phase_cost(SPLINE, w, result.p, CONFIG))
+    assert result.p[0] == 0.0 and result.p[-1] == 1.0
+    assert np.diff(result.p).min() > 0
+    assert result.step_norm <= CONFIG.radius * (1 + 1e-9)
+    for record in result.solve.history:  # every inner iterate inside the ball
+        assert np.linalg.norm(record.w - identity[1:-1]) <= CONFIG.radius * (1 + 1e-9)
+
+
+def test_retimed_path_keeps_the_geometry():
+    w = badly_timed()
+    result = optimize_phase(SPLINE, w, config=CONFIG)
+    retimed = retime(SPLINE, w, result.p, config=CONFIG)
+    samples = SPLINE.positions(retimed.w, np.linspace(0.0, 1.0, 300))
+    assert distance_to_path(samples, w) < 5e-3  # on a path of length pi
+    assert retimed.fit_error < 5e-3
+    # the timing did change: the re-timed trajectory is not the old one
+    assert np.abs(samples - SPLINE.positions(w, np.linspace(0.0, 1.0, 300))).max() > 0.05
+
+
+def test_pinned_times_keep_their_phase():
+    w = badly_timed()
+    result = optimize_phase(SPLINE, w, config=CONFIG, pinned_times=[0.4])
+    assert result.p[20] == pytest.approx(0.4)
+    assert result.cost_after < result.cost_before
+
+
+def test_monotone_repair_and_bad_inputs():
+    with pytest.raises(InputError, match="min_increment"):
+        PhaseConfig(min_increment=1.5)
+    with pytest.raises(InputError, match="p_start"):
+        optimize_phase(SPLINE, badly_timed(), np.linspace(0.1, 1, 51), config=CONFIG)
+
+
+def test_schedule_runs_trajectory_steps_then_phase_steps():
+    w0 = badly_timed()
+    ends = SPLINE.positions(w0, [0.0, 1.0])
+    problem = TrajectoryProblem(
+        SPLINE.n,
+        [acceleration_feature(SPLINE, 40)],
+        [configuration_feature(SPLINE, 0.0, ends[0]), configuration_feature(SPLINE, 1.0, ends[1])],
+    )
+    config = ScheduleConfig(radius=0.5, max_trajectory_steps=3, max_phase_steps=2, phase=CONFIG)
+    steps = list(motion_steps(problem, SPLINE, w0, config=config))
+    kinds = [s.kind for s in steps]
+    assert kinds[0] is StepKind.TRAJECTORY and StepKind.PHASE in kinds
+    assert kinds == sorted(kinds, key=lambda k: k is StepKind.PHASE)  # all trajectory steps first
+    trajectory = [s for s in steps if s.kind is StepKind.TRAJECTORY]
+    assert all(s.step_norm <= 0.5 + 1e-9 for s in trajectory)
+    assert all(b.cost < a.cost for a, b in zip(trajectory, trajectory[1:]))
+    assert all(s.constraint_error < 1e-6 for s in steps)
+    assert [s.index for s in steps] == list(range(len(steps)))
+
+
+def test_alternating_schedule_returns_to_trajectory_steps():
+    w0 = badly_timed()
+    ends = SPLINE.positions(w0, [0.0, 1.0])
+    problem = TrajectoryProblem(
+        SPLINE.n,
+        [acceleration_feature(SPLINE, 40)],
+        [configuration_feature(SPLINE, 0.0, ends[0]), configuration_feature(SPLINE, 1.0, ends[1])],
+    )
+    config = ScheduleConfig(radius=0.5, max_trajectory_steps=2, max_phase_steps=1, phase=CONFIG, alternate=True, max_rounds=2)
+    kinds = [s.kind for s in motion_steps(problem, SPLINE, w0, config=config)]
+    assert kinds == [StepKind.TRAJECTORY] * 2 + [StepKind.PHASE] + [StepKind.TRAJECTORY] * 2 + [StepKind.PHASE]
