@@ -63,6 +63,7 @@ class CORLConfig:
     max_rl_trials: int = 100
     rollout_every_step: bool = True
     reuse_data: bool = True
+    max_phase_steps: int = 0  # phase steps (Eq. 10) after the trajectory steps; needs task.spline
     solver: SolverConfig = field(default_factory=SolverConfig)
 
     def __post_init__(self) -> None:
@@ -218,12 +219,45 @@ class CORL:
                     return w_star, r_star
                 w_star, r_star = w_i, float(outcome.return_)  # set best w* if rollout successful
                 self._best = Best(w_star, theta_star, r_star, cost_of(task, w_star))
+        if cfg.max_phase_steps > 0 and getattr(task, "spline", None) is not None:
+            w_star, r_star, w_i = yield from self._phase(problem, w_star, r_star, w_i, theta_star)
         if not cfg.rollout_every_step and not np.array_equal(w_i, w_star):
             outcome = yield self._proposal(w_i, theta_star, "optimization")
             if outcome.success:
                 w_star, r_star = w_i, float(outcome.return_)
                 self._best = Best(w_star, theta_star, r_star, cost_of(task, w_star))
         return w_star, r_star
+
+    def _phase(self, problem, w_star, r_star, w_i, theta_star):
+        """Sec. VI-B: phase steps (Eq. 10) with the geometry fixed, after the trajectory steps.
+
+        Each step re-times the path (trust region on the phase profile), re-fits the B-spline and
+        projects it back onto ``h = 0`` (Eq. 18); it is kept only if it lowers J, and rolled out
+        like a trajectory step. Contact times (``task.pinned_times``) keep their phase.
+        """
+        from corl.trajectory.phase import optimize_phase, retime
+
+        task, cfg = self.task, self.config
+        pinned = tuple(getattr(task, "pinned_times", ()))
+        J_i = cost_of(task, w_i)
+        for _ in range(cfg.max_phase_steps):
+            phase = optimize_phase(task.spline, w_i, pinned_times=pinned)
+            if not phase.cost_after < phase.cost_before:
+                break
+            retimed = retime(task.spline, w_i, phase.p, equalities=problem)
+            if retimed.projection is not None and not self._feasible(retimed.projection):
+                break
+            w_next, J_next = retimed.w, cost_of(task, retimed.w)
+            if J_next >= J_i or np.linalg.norm(w_next - w_i) < cfg.eps_w:
+                break
+            w_i, J_i = w_next, J_next
+            if cfg.rollout_every_step:
+                outcome = yield self._proposal(w_i, theta_star, "phase")
+                if not outcome.success:
+                    break
+                w_star, r_star = w_i, float(outcome.return_)
+                self._best = Best(w_star, theta_star, r_star, J_i)
+        return w_star, r_star, w_i
 
     def _feasible(self, result) -> bool:
         return bool(result.constraint_error <= 10.0 * self.config.solver.tol_constraint)

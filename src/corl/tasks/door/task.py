@@ -159,9 +159,14 @@ class DoorTask:
         from corl.optimizers.gpconfig import DOOR_CLASSIFIER, DOOR_REGRESSION
 
         corl = CORLConfig(eps_max=EPS_MAX, eps_w=1e-5, eps_theta=0.003, max_rounds=3,
-                          max_optimization_steps=60, max_rl_trials=60)
+                          max_optimization_steps=60, max_rl_trials=60, max_phase_steps=20)
         return MethodSettings(regression=DOOR_REGRESSION, classifier=DOOR_CLASSIFIER, corl=corl,
                               rl_budget=60, direct_budget=150)
+
+    @property
+    def pinned_times(self) -> tuple[float, ...]:
+        """Contact times keep their phase in the phase steps (Eq. 10): h is defined at them."""
+        return tuple(float(t) for t in self.contact_times)
 
     # -- the black box ---------------------------------------------------------------------------
     def reference(self, w: np.ndarray, rate: float = 1.0 / CONTROL_DT):
