@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from corl.errors import InputError
 
 __all__ = ["RegressionConfig", "ClassifierConfig", "SYNTHETIC_REGRESSION", "SYNTHETIC_CLASSIFIER",
@@ -14,14 +16,14 @@ __all__ = ["RegressionConfig", "ClassifierConfig", "SYNTHETIC_REGRESSION", "SYNT
 class RegressionConfig:
     """Return GP g_R: squared-exponential kernel (Eq. 16), Gaussian noise, constant prior mean."""
 
-    lengthscale: float = 0.4
+    lengthscale: float | tuple[float, ...] = 0.4  # one per dimension of theta for ARD (Eq. 16)
     signal_std: float = 10.0
     noise_std: float = 0.11
     prior_mean: float = 0.0
     fit_hyperparameters: bool = False
 
     def __post_init__(self) -> None:
-        if min(self.lengthscale, self.signal_std) <= 0 or self.noise_std < 0:
+        if not np.all(np.asarray(self.lengthscale) > 0) or self.signal_std <= 0 or self.noise_std < 0:
             raise InputError("GP regression needs lengthscale > 0, signal_std > 0 and noise_std >= 0")
 
     def build(self):
@@ -35,13 +37,13 @@ class RegressionConfig:
 class ClassifierConfig:
     """Success GP g_S: logistic likelihood, Laplace approximation, negative constant prior mean."""
 
-    lengthscale: float = 0.4
+    lengthscale: float | tuple[float, ...] = 0.4  # one per dimension of theta for ARD (Eq. 16)
     signal_std: float = 10.0
     prior_mean: float = -7.0
     fit_hyperparameters: bool = False
 
     def __post_init__(self) -> None:
-        if min(self.lengthscale, self.signal_std) <= 0:
+        if not np.all(np.asarray(self.lengthscale) > 0) or self.signal_std <= 0:
             raise InputError("GP classifier needs lengthscale > 0 and signal_std > 0")
 
     def build(self):
