@@ -83,6 +83,66 @@ def bench_synthetic(
     typer.echo(f"\n{len(names)} methods x {starts} starts in {wall:.1f} s; wrote {out / 'synthetic.json'}")
 
 
+@bench_app.command("door")
+def bench_door(
+    seeds: int = typer.Option(10, help="runs per method, seeds 0 .. SEEDS-1"),
+    iterations: int = typer.Option(100, help="black-box trials of CORL's step 2 (one round)"),
+    dmp_iterations: int = typer.Option(150, help="PoWER trials of the DMP+PoWER baseline"),
+    out: Path = typer.Option(Path("results/door"), help="output folder for door.json and the safe-region cache"),
+    methods: Optional[str] = typer.Option(None, help="comma-separated: CORL+PIBU,CORL+CMA,DMP+PoWER (default all)"),
+    grid: str = typer.Option("25x15", help="safe-region grid over theta, N1xN2"),
+    jobs: int = typer.Option(2, help="parallel workers (-1: all cores)"),
+    backend: str = typer.Option("loky", help="joblib backend"),
+    quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
+) -> None:
+    """Reproduce Fig. 3: the door task's highest return, failure rate and distance to the safe region."""
+    import time
+
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from corl.errors import CorlError
+    from corl.experiments.door_bench import DOOR_METHODS, door_sweep, door_table
+    from corl.versions import library_versions
+
+    names = list(DOOR_METHODS) if methods is None else [m.strip() for m in methods.split(",") if m.strip()]
+    unknown = [m for m in names if m not in DOOR_METHODS]
+    if unknown:
+        _fail(f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(DOOR_METHODS)}")
+    if min(seeds, iterations, dmp_iterations) < 1:
+        _fail("--seeds, --iterations and --dmp-iterations must be at least 1")
+    try:
+        n1, n2 = (int(v) for v in grid.lower().split("x"))
+    except ValueError:
+        _fail(f"--grid must look like 25x15, got {grid!r}")
+    console = Console(stderr=True)
+    t0 = time.perf_counter()
+    with Progress(TextColumn("[bold]door {task.fields[stage]}"), BarColumn(), MofNCompleteColumn(),
+                  TimeElapsedColumn(), TextColumn("{task.description}"), console=console, disable=quiet) as bar:
+        stages: dict[str, int] = {}
+
+        def tick(stage, done, total, note):
+            if stage not in stages:
+                stages[stage] = bar.add_task("", total=total, stage=stage)
+            bar.update(stages[stage], completed=done, total=total, description=note)
+
+        try:
+            result = door_sweep(names, seeds, iterations, out=out, dmp_iterations=dmp_iterations, grid=(n1, n2),
+                                jobs=jobs, backend=backend, progress=tick)
+        except CorlError as exc:
+            _fail(str(exc))
+    wall = time.perf_counter() - t0
+    regions = {r.key: {"grid": list(r.success.shape), "safe": int(r.success.sum()),
+                       "unrealised": int((~r.realised).sum()), "spacing": r.spacing.tolist()}
+               for r in result.regions.values()}
+    payload = {"methods": result.table, "seeds": seeds, "iterations": iterations, "dmp_iterations": dmp_iterations,
+               "safe_regions": regions, "wall_seconds": wall, "versions": library_versions()}
+    _write_json(out / "door.json", payload)
+    typer.echo(door_table(result.table, iterations=iterations, dmp_iterations=dmp_iterations,
+                          regions=result.regions))
+    typer.echo(f"\n{len(names)} methods x {seeds} seeds in {wall:.1f} s; wrote {out / 'door.json'}")
+
+
 def _open_store(path: Path, *, readonly: bool = False, create: bool = True):
     from corl.store import RunStore
 

@@ -1,0 +1,510 @@
+"""The door benchmark of Sec. VIII-B, Fig. 3: CORL+PIBU, CORL+CMA and DMP+PoWER on the door task.
+
+Glossary
+--------
+theta        : (2,) grasp shift along the handle (m) and finger width (m), the door's theta
+safe region  : the thetas whose realisation (Eq. 18 from an anchor trajectory) opens the door,
+               measured on a grid over ``task.theta_bounds`` (:func:`safe_region`)
+anchor       : the trajectory a theta is realised from; for CORL the ``w*`` its black-box step
+               starts from (the result of the motion-optimization step), for DMP+PoWER the
+               demonstration
+R            : the door task's return ``1 - F / 20 N`` (F the mean wrist force); the paper's R is
+               in other units, so only the trend compares
+trial        : one rollout of the black-box step (CORL's step 2, PoWER's search)
+
+Metrics of one run (the rows of Fig. 3; mean and standard deviation over seeds):
+
+* highest return : the largest R over every successful rollout of the run (demonstration and
+  motion-optimization rollouts included: they are the policy the learner starts from);
+* failure rate   : failed trials / trials of the black-box step;
+* max distance   : the largest Euclidean distance in theta (m, both coordinates unscaled) from a
+  failed trial to the nearest safe grid point; 0 for a run without failures.
+
+Setup of the runs (beyond the paper, which states no budget for the door):
+
+* CORL runs the full Algorithm 1 for one round (``CORLConfig(max_rounds=1)``): motion
+  optimization from the demonstration, then at most ``iterations`` black-box trials. PIBU may
+  stop earlier by its own rule (its next point within 1e-3 of a sampled one).
+* A theta the projection cannot realise is told to the black-box method as a failure without a
+  rollout (see :mod:`corl.learner`); those are counted apart (``unrealisable``), not as failures.
+* DMP+PoWER: a DMP (11 bases per dimension, 96 parameters) fitted to the demonstration's
+  reference, PoWER over its parameters in a box of ``DMP_BOX_SCALES`` parameter scales around the
+  fit; trial 0 is the fitted DMP, then ``dmp_iterations`` PoWER trials. Its theta is measured on
+  the executed reference (a B-spline fit of it, then ``task.theta_of``); the DMP's trajectory is
+  not a projection from the anchor, so its distance to the safe region is only indicative.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from corl.errors import InputError
+
+__all__ = ["CORL_METHODS", "DOOR_METHODS", "PAPER_FIG3", "DMP_BOX_SCALES", "DMP_POWER_STD", "DoorRun",
+           "SafeRegion", "DoorBench", "safe_region", "distance_to_safe", "run_corl", "run_dmp_power",
+           "run_one", "door_sweep", "aggregate", "door_table"]
+
+CORL_METHODS = ("CORL+PIBU", "CORL+CMA")
+DOOR_METHODS = CORL_METHODS + ("DMP+PoWER",)
+PAPER_FIG3 = {  # highest return (mean, std), failure rate (mean, std), max distance (mean, std)
+    "CORL+PIBU": (0.45, 0.032, 0.157, 0.021, 0.0146, 0.006),
+    "CORL+CMA": (0.41, 0.017, 0.190, 0.102, 0.0358, 0.030),
+}
+DMP_BASIS = 11            # basis functions per dimension: 8 (11 + 1) = 96 parameters (Sec. VIII-B)
+DMP_BOX_SCALES = 3.0      # PoWER's box: fitted params +- this many param_scale units
+DMP_POWER_STD = 0.005     # PoWER's exploration std as a fraction of the box width (0.03 param scales);
+                          # the best of 0.0025, 0.005, 0.01, 0.02 on seed 0 over 40 trials (0.02: 38 failures)
+DMP_OVERLAP = 0.8         # neighbouring bases cross at 0.8: with 0.5 the 11-basis fit of the demonstration
+                          # grasps too wide (the gripper width 5 mm off at t_c) and fails in the simulator
+
+Progress = Callable[[str, int, int, str], None]  # (stage, done, total, note)
+
+_TASKS: dict[tuple, object] = {}  # one DoorTask per worker process and settings (a MuJoCo scene)
+
+
+# -- tasks in worker processes ---------------------------------------------------------------------
+def _task_settings(task) -> dict:
+    return {"num_control_points": int(task.spline.num_control_points), "num_steps": int(task.num_steps)}
+
+
+def _door_task(settings: dict):
+    """The process's DoorTask for ``settings`` (built once: loading the scene takes ~1 s)."""
+    key = tuple(sorted(settings.items()))
+    if key not in _TASKS:
+        from corl.tasks.door.task import DoorTask
+
+        _TASKS[key] = DoorTask(**settings)
+    return _TASKS[key]
+
+
+def _digest(array: np.ndarray) -> str:
+    return hashlib.sha256(np.ascontiguousarray(array, dtype=float).tobytes()).hexdigest()[:16]
+
+
+# -- the ground truth: the safe region over theta -----------------------------------------------------
+@dataclass(frozen=True)
+class SafeRegion:
+    """Success of a dense grid over theta.
+
+    Attributes
+    ----------
+    theta1 : (n1,) grid of the grasp shift (m); theta2 : (n2,) grid of the finger width (m).
+    success : (n1, n2) bool, the realised theta opened the door.
+    realised : (n1, n2) bool, Eq. 18 found a feasible trajectory (an unrealised theta is unsafe).
+    key : the cache key (task settings, grid, anchor, library versions).
+    """
+
+    theta1: np.ndarray
+    theta2: np.ndarray
+    success: np.ndarray
+    realised: np.ndarray
+    key: str
+
+    @property
+    def points(self) -> np.ndarray:
+        """(n1 n2, 2) every grid point, row-major like ``success.ravel()``."""
+        T1, T2 = np.meshgrid(self.theta1, self.theta2, indexing="ij")
+        return np.column_stack([T1.ravel(), T2.ravel()])
+
+    @property
+    def safe_points(self) -> np.ndarray:
+        """(k, 2) the successful grid points."""
+        return self.points[self.success.ravel()]
+
+    @property
+    def spacing(self) -> np.ndarray:
+        """(2,) grid step per coordinate: the resolution of :func:`distance_to_safe`."""
+        return np.array([np.ptp(self.theta1) / max(len(self.theta1) - 1, 1),
+                         np.ptp(self.theta2) / max(len(self.theta2) - 1, 1)])
+
+
+def _realise_and_roll_out(settings: dict, anchor: np.ndarray, thetas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Realise every theta (k, 2) from ``anchor`` as the learner does (Eq. 18) and roll it out."""
+    from corl.learner import CORL
+
+    task = _door_task(settings)
+    learner = CORL(task, lambda *_: None, task.method_settings().corl)
+    theta_anchor = np.asarray(task.demonstration().theta, dtype=float)
+    success = np.zeros(len(thetas), dtype=bool)
+    realised = np.zeros(len(thetas), dtype=bool)
+    for k, theta in enumerate(thetas):
+        result = learner._realise(anchor, theta_anchor, theta)
+        realised[k] = learner._feasible(result)
+        if realised[k]:
+            success[k] = task.rollout(result.w).success
+    return success, realised
+
+
+def safe_region(task, n1: int = 25, n2: int = 15, *, anchor: np.ndarray | None = None,
+                cache: str | Path | None = None, jobs: int = 2, backend: str = "loky",
+                progress: Progress | None = None) -> SafeRegion:
+    """The safe region over theta from a dense sweep (about 0.4 s per grid point).
+
+    Each theta of an ``n1 x n2`` grid over ``task.theta_bounds`` is realised from ``anchor`` with
+    Eq. 18, exactly as the learner does it (``CORL._realise``: the task's projection metric,
+    continuation when the direct projection is infeasible), rolled out, and its success recorded.
+
+    Parameters
+    ----------
+    task : a :class:`corl.tasks.door.DoorTask` (only its settings travel to the workers).
+    n1, n2 : grid points along the grasp shift and the finger width.
+    anchor : (n,) the trajectory thetas are realised from; default the demonstration's ``w0``.
+    cache : folder for ``door_safe_region_<key>.npz``; the key covers the task's settings, the
+        grid, the anchor and :func:`corl.versions.library_versions`.
+    jobs, backend : joblib workers and backend.
+    progress : ``(stage, done, total, note)``, called as chunks of the grid finish.
+    """
+    from joblib import Parallel, delayed, effective_n_jobs
+
+    from corl.versions import library_versions
+
+    if n1 < 2 or n2 < 2:
+        raise InputError(f"the safe-region grid needs at least 2 x 2 points, got {n1} x {n2}")
+    settings = _task_settings(task)
+    anchor = np.asarray(task.demonstration().w if anchor is None else anchor, dtype=float)
+    bounds = task.theta_bounds
+    theta1 = np.linspace(bounds.lower[0], bounds.upper[0], n1)
+    theta2 = np.linspace(bounds.lower[1], bounds.upper[1], n2)
+    key_source = {"task": settings, "lower": bounds.lower.tolist(), "upper": bounds.upper.tolist(),
+                  "grid": [n1, n2], "anchor": _digest(anchor), "versions": library_versions()}
+    key = hashlib.sha256(json.dumps(key_source, sort_keys=True).encode()).hexdigest()[:16]
+    path = None if cache is None else Path(cache) / f"door_safe_region_{key}.npz"
+    if path is not None and path.exists():
+        with np.load(path) as f:
+            return SafeRegion(f["theta1"], f["theta2"], f["success"], f["realised"], key)
+
+    T1, T2 = np.meshgrid(theta1, theta2, indexing="ij")
+    points = np.column_stack([T1.ravel(), T2.ravel()])
+    n_chunks = min(len(points), 4 * max(1, effective_n_jobs(jobs)))
+    chunks = [np.arange(j, len(points), n_chunks) for j in range(n_chunks)]  # interleaved: even work
+    success = np.zeros(len(points), dtype=bool)
+    realised = np.zeros(len(points), dtype=bool)
+    parallel = Parallel(n_jobs=jobs, backend=backend, return_as="generator")
+    done = 0
+    for idx, (s, r) in zip(chunks, parallel(delayed(_realise_and_roll_out)(settings, anchor, points[idx])
+                                            for idx in chunks)):
+        success[idx], realised[idx] = s, r
+        done += len(idx)
+        if progress is not None:
+            progress("safe region", done, len(points), f"{int(success.sum())} safe so far")
+    region = SafeRegion(theta1, theta2, success.reshape(n1, n2), realised.reshape(n1, n2), key)
+    if path is not None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(path.stem + ".tmp.npz")
+        np.savez(tmp, theta1=theta1, theta2=theta2, success=region.success, realised=region.realised,
+                 key=np.array(json.dumps(key_source, sort_keys=True)))
+        tmp.replace(path)
+    return region
+
+
+def distance_to_safe(theta, grid: SafeRegion) -> float:
+    """Euclidean distance in theta (m; the two coordinates unscaled) to the nearest safe grid point.
+
+    The paper reports one number per failure in theta units; this is its measurement against the
+    grid. Its resolution is half a grid step (``grid.spacing``): a failure just outside the safe
+    region is up to that far from the nearest safe grid point. ``theta`` (2,); inf when the grid
+    has no safe point.
+    """
+    safe = grid.safe_points
+    if len(safe) == 0:
+        return math.inf
+    theta = np.asarray(theta, dtype=float).reshape(1, 2)
+    return float(np.min(np.linalg.norm(safe - theta, axis=1)))
+
+
+# -- one run ----------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class DoorRun:
+    """One method from one seed.
+
+    Attributes
+    ----------
+    trials, failures : rollouts of the black-box step and how many failed.
+    unrealisable : thetas Eq. 18 could not realise (told as failures, never rolled out).
+    highest_return : largest R over all successful rollouts (NaN without a success).
+    start_return : R of the policy the black-box step starts from (CORL: its w* after step 1;
+        DMP+PoWER: the fitted DMP); first_return : R of the first black-box trial (NaN if it failed).
+    failed_thetas : (failures, 2) theta of every failed trial.
+    anchor : (n,) the trajectory the safe region of this run is realised from.
+    rollouts : all rollouts of the run; seconds : wall time of the run.
+    """
+
+    method: str
+    seed: int
+    trials: int
+    failures: int
+    unrealisable: int
+    highest_return: float
+    start_return: float
+    first_return: float
+    failed_thetas: np.ndarray
+    best_theta: np.ndarray | None
+    anchor: np.ndarray
+    rollouts: int
+    seconds: float
+
+
+def _corl_settings(task, iterations: int):
+    """The task's Sec. VIII-B settings with one round and ``iterations`` black-box trials.
+
+    The black-box method's budget counts every point told to it; D starts with ``(theta0, R)``,
+    hence ``iterations + 1``.
+    """
+    preset = task.method_settings()
+    corl = replace(preset.corl, max_rounds=1, max_rl_trials=iterations)
+    return replace(preset, corl=corl, rl_budget=iterations + 1)
+
+
+def run_corl(method: str, seed: int, iterations: int, *, task=None) -> DoorRun:
+    """One round of Algorithm 1 (motion optimization, then ``iterations`` black-box trials)."""
+    from corl.experiments.methods import make_method
+
+    if method not in CORL_METHODS:
+        raise InputError(f"unknown CORL method '{method}' for the door; choose one of {', '.join(CORL_METHODS)}")
+    t0 = time.perf_counter()
+    task = task or _door_task({})
+    learner = make_method(method, task, seed=seed, settings=_corl_settings(task, iterations))
+    learner.run()
+    history = learner.history
+    rl = [(p, o) for p, o in history if p.step == "reinforcement"]
+    before = [(p, o) for p, o in history if p.step != "reinforcement" and o.success]
+    anchor_p, anchor_o = before[-1]  # step 1 stops at its first failure: the last success is w*
+    ok = [o.return_ for _, o in history if o.success]
+    fails = [p.theta for p, o in rl if not o.success]
+    return DoorRun(
+        method=method, seed=seed, trials=len(rl), failures=len(fails), unrealisable=learner.unrealisable,
+        highest_return=max(ok) if ok else math.nan, start_return=float(anchor_o.return_),
+        first_return=float(rl[0][1].return_) if rl and rl[0][1].success else math.nan,
+        failed_thetas=np.array(fails, dtype=float).reshape(-1, 2),
+        best_theta=None if learner.best is None else np.asarray(learner.best.theta, dtype=float),
+        anchor=np.asarray(anchor_p.w, dtype=float), rollouts=len(history), seconds=time.perf_counter() - t0)
+
+
+def _dmp_trial(task, dmp, params):
+    """Roll out the DMP with ``params`` (96,): its Outcome (R as the door task's) and measured theta."""
+    from corl.problem import Outcome
+    from corl.tasks.door.demo import CONTROL_DT
+    from corl.tasks.door.sim import rollout
+    from corl.tasks.door.task import FORCE_REFERENCE
+
+    t, Y = dmp.reference(params, dt=CONTROL_DT, duration=task.duration)
+    if not np.all(np.isfinite(Y)):
+        return Outcome(False, None, {"diverged": True}), np.full(2, np.nan)
+    theta = task.theta_of(task.spline.fit(t, Y))  # theta of the executed reference (B-spline fit)
+    result = rollout(Y, duration=task.duration, t_contact=task.t_contact, scene=task.scene)
+    if not result.success:
+        return Outcome(False, None), theta
+    return Outcome(True, 1.0 - result.force_mean / FORCE_REFERENCE), theta
+
+
+def run_dmp_power(seed: int, iterations: int = 150, *, task=None, box_scales: float = DMP_BOX_SCALES,
+                  std: float = DMP_POWER_STD) -> DoorRun:
+    """The paper's baseline: PoWER over the 96 shape and goal parameters of a fitted DMP.
+
+    Trial 0 is the DMP fitted to the demonstration's reference (the PoWER mean's start); then
+    ``iterations`` PoWER trials in the box ``params +- box_scales * param_scale`` with exploration
+    ``std`` (a fraction of the box width). Failures score the task's ``failure_return``.
+    """
+    from corl.optimizers.power import PoWER, PoWERConfig
+    from corl.policies.dmp import DMP, DMPConfig
+    from corl.problem import Bounds
+
+    t0 = time.perf_counter()
+    task = task or _door_task({})
+    demo = task.demonstration()
+    times, Y = task.reference(demo.w)
+    dmp = DMP.fit(times, Y, n_basis=DMP_BASIS, config=DMPConfig(overlap=DMP_OVERLAP))
+    x0, scale = dmp.params, dmp.param_scale
+    bounds = Bounds(x0 - box_scales * scale, x0 + box_scales * scale)
+    optimizer = PoWER(bounds, x0, PoWERConfig(std=std), failure_return=task.method_settings().failure_return,
+                      max_evals=iterations + 1, seed=np.random.default_rng([seed, 96]))
+    returns, fails = [], []
+    start_return = first_return = math.nan
+    best = (-math.inf, None)
+    for k in range(iterations + 1):
+        params = x0 if k == 0 else optimizer.ask()
+        outcome, theta = _dmp_trial(task, dmp, params)
+        optimizer.tell(params, outcome)
+        r = float(outcome.return_) if outcome.success else math.nan
+        if k == 0:
+            start_return = r
+            continue
+        if k == 1:
+            first_return = r
+        if outcome.success:
+            returns.append(r)
+            if r > best[0]:
+                best = (r, theta)
+        else:
+            fails.append(theta)
+    ok = [r for r in returns + [start_return] if math.isfinite(r)]
+    return DoorRun(
+        method="DMP+PoWER", seed=seed, trials=iterations, failures=len(fails), unrealisable=0,
+        highest_return=max(ok) if ok else math.nan, start_return=start_return, first_return=first_return,
+        failed_thetas=np.array(fails, dtype=float).reshape(-1, 2), best_theta=best[1],
+        anchor=np.asarray(demo.w, dtype=float), rollouts=iterations + 1, seconds=time.perf_counter() - t0)
+
+
+def run_one(method: str, seed: int, iterations: int, dmp_iterations: int = 150,
+            settings: dict | None = None) -> DoorRun:
+    """One run of a Fig. 3 row (``method`` in :data:`DOOR_METHODS`) in this process's DoorTask."""
+    task = _door_task(settings or {})
+    if method == "DMP+PoWER":
+        return run_dmp_power(seed, dmp_iterations, task=task)
+    return run_corl(method, seed, iterations, task=task)
+
+
+# -- the sweep and the table -----------------------------------------------------------------------
+@dataclass(frozen=True)
+class DoorBench:
+    """Runs, the safe regions they were measured against (by anchor key) and the table rows."""
+
+    runs: list[DoorRun]
+    regions: dict[str, SafeRegion]
+    table: dict[str, dict]
+
+
+def door_sweep(methods, seeds: int, iterations: int = 100, *, out: str | Path | None = None,
+               dmp_iterations: int = 150, grid: tuple[int, int] = (25, 15), jobs: int = 2,
+               backend: str = "loky", progress: Progress | None = None) -> DoorBench:
+    """Every method from seeds ``0 .. seeds - 1`` (joblib), then the safe regions and the table.
+
+    The safe region of a run is realised from that run's anchor (CORL: ``w*`` after motion
+    optimization, the same for every seed; DMP+PoWER: the demonstration); each distinct anchor's
+    grid is computed once and cached in ``out``.
+    """
+    from joblib import Parallel, delayed
+
+    methods = list(methods)
+    unknown = [m for m in methods if m not in DOOR_METHODS]
+    if unknown:
+        raise InputError(f"unknown door method(s) {', '.join(unknown)}; choose from {', '.join(DOOR_METHODS)}")
+    if seeds < 1 or iterations < 1 or dmp_iterations < 1:
+        raise InputError("seeds, iterations and dmp_iterations must be at least 1")
+    task = _door_task({})
+    settings = _task_settings(task)
+    jobs_list = [(m, s) for m in methods for s in range(seeds)]
+    parallel = Parallel(n_jobs=jobs, backend=backend, return_as="generator_unordered", batch_size=1)
+    runs = []
+    for r in parallel(delayed(run_one)(m, s, iterations, dmp_iterations, settings) for m, s in jobs_list):
+        runs.append(r)
+        if progress is not None:
+            progress("runs", len(runs), len(jobs_list), f"{r.method} seed {r.seed}: {r.failures}/{r.trials} failed")
+    order = {m: k for k, m in enumerate(methods)}
+    runs.sort(key=lambda r: (order[r.method], r.seed))
+    regions: dict[str, SafeRegion] = {}
+    for r in runs:
+        digest = _digest(r.anchor)
+        if digest not in regions:
+            regions[digest] = safe_region(task, *grid, anchor=r.anchor, cache=out, jobs=jobs, backend=backend,
+                                          progress=progress)
+    return DoorBench(runs, regions, aggregate(runs, regions, methods))
+
+
+def _max_distance(run: DoorRun, region: SafeRegion) -> float:
+    return max((distance_to_safe(t, region) for t in run.failed_thetas), default=0.0)
+
+
+def _mean_std(values) -> tuple[float, float]:
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    return (float(v.mean()), float(v.std())) if v.size else (math.nan, math.nan)
+
+
+def aggregate(runs: list[DoorRun], regions: dict[str, SafeRegion], methods) -> dict[str, dict]:
+    """Per-method rows of ``door.json``: mean and population std over seeds.
+
+    A NaN (``first_return`` of a run whose first trial failed) is left out of its mean; a row
+    without any finite value reads None.
+    """
+    table = {}
+    for m in methods:
+        rs = [r for r in runs if r.method == m]
+        if not rs:
+            continue
+        region = {id(r): regions[_digest(r.anchor)] for r in rs}
+        rows = {
+            "highest_return": [r.highest_return for r in rs],
+            "failure_rate": [r.failures / r.trials if r.trials else 0.0 for r in rs],
+            "max_dist": [_max_distance(r, region[id(r)]) for r in rs],
+            "start_return": [r.start_return for r in rs],
+            "first_return": [r.first_return for r in rs],
+        }
+        entry: dict = {"seeds": len(rs)}
+        for name, values in rows.items():
+            entry[f"{name}_mean"], entry[f"{name}_std"] = _mean_std(values)
+        entry.update({
+            "failures_mean": float(np.mean([r.failures for r in rs])),
+            "trials_mean": float(np.mean([r.trials for r in rs])),
+            "unrealisable_total": int(sum(r.unrealisable for r in rs)),
+            "rollouts_mean": float(np.mean([r.rollouts for r in rs])),
+            "seconds": float(sum(r.seconds for r in rs)),
+            "safe_region": sorted({region[id(r)].key for r in rs}),
+            "per_seed": [{"seed": r.seed, "highest_return": r.highest_return, "failures": r.failures,
+                          "trials": r.trials, "max_dist": _max_distance(r, region[id(r)]),
+                          "best_theta": None if r.best_theta is None else r.best_theta.tolist()} for r in rs],
+            "paper": dict(zip(("highest_return_mean", "highest_return_std", "failure_rate_mean", "failure_rate_std",
+                               "max_dist_mean", "max_dist_std"), PAPER_FIG3.get(m, (None,) * 6))),
+        })
+        table[m] = _json_safe(entry)
+    return table
+
+
+def _json_safe(value):
+    """NaN and inf become None (JSON has neither)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_json_safe(v) for v in value]
+    return value
+
+
+def _pm(mean, std, digits: int) -> str:
+    return "-" if mean is None else f"{mean:.{digits}f} ± {std:.{digits}f}"
+
+
+def door_table(table: dict[str, dict], *, iterations: int | None = None, dmp_iterations: int | None = None,
+               regions: dict[str, SafeRegion] | None = None) -> str:
+    """Fig. 3 as text: ours beside the paper's for every method in ``table``."""
+    budget = "" if iterations is None else f", CORL: 1 round with <= {iterations} black-box trials"
+    if dmp_iterations is not None:
+        budget += f", DMP+PoWER: {dmp_iterations} trials"
+    lines = [f"Fig. 3, door benchmark (full Algorithm 1{budget}; mean ± std over seeds)",
+             "  our R = 1 - F / 20 N, the paper's R is in other units: compare trends, not values",
+             "  max dist: largest Euclidean distance in theta (m) from a failure to the nearest safe grid point"]
+    if regions:
+        for region in regions.values():
+            lines.append(f"  safe region {region.key}: {region.success.shape[0]} x {region.success.shape[1]} grid, "
+                         f"{int(region.success.sum())} safe, resolution {np.round(region.spacing, 4).tolist()} m")
+    head = (f"{'Method':<11} {'highest R':>15} {'paper':>15}   {'failure rate':>15} {'paper':>15}   "
+            f"{'max dist':>17} {'paper':>17}   {'trials':>6} {'start R':>7}")
+    lines += [head, "-" * len(head)]
+    for name, row in table.items():
+        p = row["paper"]
+        lines.append(
+            f"{name:<11} {_pm(row['highest_return_mean'], row['highest_return_std'], 3):>15} "
+            f"{_pm(p['highest_return_mean'], p['highest_return_std'], 3):>15}   "
+            f"{_pm(row['failure_rate_mean'], row['failure_rate_std'], 3):>15} "
+            f"{_pm(p['failure_rate_mean'], p['failure_rate_std'], 3):>15}   "
+            f"{_pm(row['max_dist_mean'], row['max_dist_std'], 4):>17} "
+            f"{_pm(p['max_dist_mean'], p['max_dist_std'], 4):>17}   "
+            f"{row['trials_mean']:>6.1f} {_fmt(row['start_return_mean']):>7}"
+        )
+    if "DMP+PoWER" in table:
+        lines.append("  DMP+PoWER: the paper reports no noticeable learning after 150 iterations (no numbers); "
+                     "start R is the fitted DMP's return")
+    return "\n".join(lines)
+
+
+def _fmt(value) -> str:
+    return "-" if value is None else f"{value:.3f}"
