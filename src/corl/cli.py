@@ -24,6 +24,15 @@ def _fail(message: str, code: int = 2) -> None:
     raise typer.Exit(code)
 
 
+def _method_list(methods: Optional[str], *, default: list[str], allowed) -> list[str]:
+    """Comma-separated method names, checked against ``allowed``; ``default`` when None."""
+    names = default if methods is None else [m.strip() for m in methods.split(",") if m.strip()]
+    unknown = [m for m in names if m not in allowed]
+    if unknown:
+        _fail(f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(allowed)}")
+    return names
+
+
 def _write_json(path: Path, payload: dict) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(path.suffix + ".tmp")
@@ -53,10 +62,7 @@ def bench_synthetic(
     from corl.experiments.synthetic import FOUND_TOLERANCE, aggregate, sweep
     from corl.versions import library_versions
 
-    names = list(PAPER_FIG1) if methods is None else [m.strip() for m in methods.split(",") if m.strip()]
-    unknown = [m for m in names if m not in METHODS]
-    if unknown:
-        _fail(f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(METHODS)}")
+    names = _method_list(methods, default=list(PAPER_FIG1), allowed=METHODS)
     if starts < 1:
         _fail("--starts must be at least 1")
     console = Console(stderr=True)
@@ -105,10 +111,7 @@ def bench_door(
     from corl.experiments.door_bench import DOOR_METHODS, door_sweep, door_table
     from corl.versions import library_versions
 
-    names = list(DOOR_METHODS) if methods is None else [m.strip() for m in methods.split(",") if m.strip()]
-    unknown = [m for m in names if m not in DOOR_METHODS]
-    if unknown:
-        _fail(f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(DOOR_METHODS)}")
+    names = _method_list(methods, default=list(DOOR_METHODS), allowed=DOOR_METHODS)
     if min(seeds, iterations, dmp_iterations) < 1:
         _fail("--seeds, --iterations and --dmp-iterations must be at least 1")
     try:

@@ -24,6 +24,15 @@ def _pyplot():
     return plt
 
 
+def _save(plt, fig, path) -> Path:
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
 def plot_learning_curve(learner, path: str | Path, *, title: str = "Motion optimization (Fig. 2b)") -> Path:
     """J(w) of every motion-optimization rollout, in order, with the black-box steps marked.
 
@@ -62,12 +71,7 @@ def plot_learning_curve(learner, path: str | Path, *, title: str = "Motion optim
     if "tab:orange" in colors:
         ax.scatter([], [], c="tab:orange", s=12, label="phase step")
     ax.legend(loc="upper right", fontsize=8)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, path)
 
 
 def _data(learner):
@@ -130,9 +134,4 @@ def plot_return_map(learner, path: str | Path, *, regression=None, classifier=No
         raise ValueError(f"a return map needs 1-D or 2-D theta, this task has m = {bounds.dim}")
     ax.set_title(title)
     ax.legend(loc="best", fontsize=8)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return _save(plt, fig, path)
