@@ -19,5 +19,9 @@ def write_run_artifacts(task, learner, out: Path, *, video: bool = True) -> dict
         files["return_map"] = str(plot_return_map(learner, out / "return_map.png", labels=labels))
     render = getattr(task, "render_comparison", None)
     if video and render is not None and learner.best is not None and learner.history:
-        files["video"] = str(render(learner.history[0][0].w, learner.best.w, out / "demo_vs_learned.mp4"))
+        try:
+            files["video"] = str(render(learner.history[0][0].w, learner.best.w, out / "demo_vs_learned.mp4"))
+        except Exception as exc:  # no OpenGL on this machine: the run's results stand without it
+            files["video_skipped"] = (f"{type(exc).__name__}: {exc}. Offscreen rendering needs EGL or "
+                                      "OSMesa (Debian: libegl1 libgl1); set MUJOCO_GL=egl or osmesa")
     return files
