@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import importlib
+import os
+import sys
 
 import numpy as np
 
@@ -28,6 +30,8 @@ def load_task(spec: str, *, seed: int = 0) -> Task:
         raise InputError(f"unknown task '{spec}'; use one of {', '.join(BUILTIN_TASKS)} "
                          "or an import path 'package.module:make_task'")
     module_name, _, attr = spec.partition(":")
+    if os.getcwd() not in sys.path:  # like `python -m`: modules next to where the command runs
+        sys.path.insert(0, os.getcwd())
     try:
         module = importlib.import_module(module_name)
     except ImportError as exc:
