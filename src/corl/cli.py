@@ -294,7 +294,8 @@ def ask(
     folder.mkdir(parents=True, exist_ok=True)
     stem = folder / f"trial_{proposal.index:04d}"
     np.savez(stem.with_suffix(".npz"), t=t, q=q, w=proposal.w, theta=proposal.theta)
-    header = "t," + ",".join(f"q{j}" for j in range(q.shape[1]))
+    names = getattr(the_task, "joint_names", None) or [f"q{j}" for j in range(q.shape[1])]
+    header = "t," + ",".join(names)
     np.savetxt(stem.with_suffix(".csv"), np.column_stack([t, q]), delimiter=",", header=header, comments="")
     typer.echo(json.dumps({"trial": proposal.index, "step": proposal.step, "round": proposal.round,
                            "theta": proposal.theta.tolist(), "csv": str(stem.with_suffix(".csv")),

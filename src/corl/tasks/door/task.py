@@ -28,6 +28,7 @@ import numpy as np
 
 from corl.errors import InputError
 from corl.problem import Bounds, Demonstration, Outcome
+from corl.tasks.door.scene import ARM_JOINTS
 from corl.tasks.door.demo import CONTROL_DT, DEMO_GRASP_R, DEMO_WIDTH, grasp_rotation, scripted_demonstration
 from corl.trajectory.bspline import BSpline
 from corl.trajectory.features import TaskSpaceFeature, TrajectoryProblem, acceleration_feature, configuration_feature
@@ -52,6 +53,7 @@ class DoorTask:
     theta_bounds = Bounds(np.array([-0.025, 0.008]), np.array([0.125, 0.028]))
     w_bounds = None
     theta_labels = ("grasp shift along the handle (m)", "finger width (m)")
+    joint_names = ARM_JOINTS + ("gripper_width_m",)
 
     def __init__(self, *, num_control_points: int = 150, num_steps: int = 250) -> None:
         from corl.tasks.door.kinematics import Kinematics
