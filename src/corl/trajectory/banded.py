@@ -126,7 +126,7 @@ class SupportGram:
         # (rows, cols) of the lower-triangle entries of G that some row of J touches (the others
         # are structurally zero: a start and a goal constraint do not couple start and goal).
         if pairs is None:
-            pairs = np.nonzero(np.tril(G != 0.0))
+            pairs = np.nonzero((G != 0.0) & _lower_mask(G.shape[0]))
         self.pairs = pairs
 
     @classmethod
@@ -162,18 +162,43 @@ class SupportGram:
 
     def added_to(self, H: BandedSPD) -> BandedSPD:
         """A new :class:`BandedSPD` ``H + self`` (the band widens when the block does not fit)."""
-        s = self.support
-        rows, cols = self.pairs  # lower triangle of the block (support is sorted)
-        offset = s[rows] - s[cols]
+        offset, columns = self._band_positions()
         need = int(offset.max()) if offset.size else 0
         ab = _widened(H.ab, max(need, H.bandwidth))
-        ab[offset, s[cols]] += self.G[rows, cols]  # (offset, column) pairs are distinct
+        rows, cols = self.pairs
+        ab[offset, columns] += self.G[rows, cols]  # (offset, column) pairs are distinct
         return BandedSPD(ab)
+
+    def add_into(self, H: BandedSPD) -> bool:
+        """``H += self`` in place when the block fits in H's band; returns False (H untouched) if not."""
+        offset, columns = self._band_positions()
+        if offset.size and int(offset.max()) > H.bandwidth:
+            return False
+        rows, cols = self.pairs
+        H.ab[offset, columns] += self.G[rows, cols]
+        return True
+
+    def _band_positions(self) -> tuple[np.ndarray, np.ndarray]:
+        """(row in band storage, column) of each entry of :attr:`pairs`, both (len(pairs),)."""
+        s = self.support
+        rows, cols = self.pairs  # lower triangle of the block (support is sorted)
+        return s[rows] - s[cols], s[cols]
 
     def toarray(self) -> np.ndarray:
         H = np.zeros((self.n, self.n))
         H[np.ix_(self.support, self.support)] = self.G
         return H
+
+
+_LOWER_MASKS: dict[int, np.ndarray] = {}
+
+
+def _lower_mask(s: int) -> np.ndarray:
+    """Boolean lower triangle (diagonal included) of an (s, s) matrix, cached per size."""
+    mask = _LOWER_MASKS.get(s)
+    if mask is None:
+        mask = _LOWER_MASKS[s] = np.tri(s, dtype=bool)
+    return mask
 
 
 def _widened(ab: np.ndarray, u: int) -> np.ndarray:
@@ -223,9 +248,7 @@ def banded_cholesky(
     NumericalError
         If the matrix stays indefinite after the largest jitter.
     """
-    scale = float(np.mean(np.abs(ab[0]))) if ab.shape[1] else 1.0
-    scale = scale if scale > 0 and np.isfinite(scale) else 1.0
-    for jitter in (0.0,) + tuple(rel * scale for rel in _JITTER_LADDER):
+    for jitter in _jitters(ab):
         shifted = ab.copy(order="F")
         if shift or jitter:
             shifted[0] += shift + jitter
@@ -238,6 +261,15 @@ def banded_cholesky(
         f"banded Cholesky of the {what} failed: not positive definite even with jitter "
         f"{_JITTER_LADDER[-1]:g} x mean diagonal; add damping or check that the Jacobians are finite"
     )
+
+
+def _jitters(ab: np.ndarray):
+    """0, then the jitter ladder relative to the mean |diagonal| (computed only when needed)."""
+    yield 0.0
+    scale = float(np.mean(np.abs(ab[0]))) if ab.shape[1] else 1.0
+    scale = scale if scale > 0 and np.isfinite(scale) else 1.0
+    for rel in _JITTER_LADDER:
+        yield rel * scale
 
 
 def bandwidth(H) -> int:

@@ -259,6 +259,10 @@ class TaskSpaceFeature:
         cols = (idx[:, :, None] * self.Q + np.arange(self.Q)).reshape(c, 1, width * self.Q)
         self._indices = np.broadcast_to(cols, (c, self.d, width * self.Q)).reshape(-1).astype(np.int32)
         self._indptr = (np.arange(c * self.d + 1) * (width * self.Q)).astype(np.int32)
+        # For curvature: the columns of each time's block, (c, (degree + 1) Q), and b_k b_k^T
+        # shaped (c, k + 1, 1, k + 1, 1) to broadcast against M_k into kron(b_k b_k^T, M_k).
+        self._block_columns = cols.reshape(c, width * self.Q).astype(np.int64)
+        self._basis_outer = (val[:, :, None] * val[:, None, :])[:, :, None, :, None]
 
     @property
     def dim(self) -> int:
@@ -269,7 +273,13 @@ class TaskSpaceFeature:
         W = w.reshape(-1, self.Q)
         return np.einsum("kp,kpj->kj", self.basis_values, W[self.idx])
 
-    def __call__(self, w: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+    @property
+    def columns(self) -> np.ndarray:
+        """Columns of w that each Jacobian row touches, (c d, (degree + 1) Q), sorted per row."""
+        return self._indices.reshape(self.dim, -1)
+
+    def jacobian_rows(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``h`` (c d,) and the non-zeros of ``dh/dw`` on :attr:`columns`, (c d, (degree + 1) Q)."""
         X = self.configurations(w)
         c, d, Q = X.shape[0], self.d, self.Q
         values = np.empty((c, d))
@@ -279,9 +289,13 @@ class TaskSpaceFeature:
             values[k] = np.asarray(y, dtype=float).reshape(d) - self.targets[k]
             jac[k] = np.asarray(dy, dtype=float).reshape(d, Q)
         # dh_k/dw[p Q + j] = b_kp dy_k/dq_j  (chain rule through xi(w, t_k) = B(t_k) W, Eq. 6)
-        data = (jac[:, :, None, :] * self.basis_values[:, None, :, None]).reshape(-1)
-        J = sp.csr_matrix((data, self._indices.copy(), self._indptr.copy()), shape=(c * d, self.n))
-        return values.reshape(-1), J
+        rows = (jac[:, :, None, :] * self.basis_values[:, None, :, None]).reshape(c * d, -1)
+        return values.reshape(-1), rows
+
+    def __call__(self, w: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+        values, rows = self.jacobian_rows(w)
+        J = sp.csr_matrix((rows.reshape(-1), self._indices.copy(), self._indptr.copy()), shape=(self.dim, self.n))
+        return values, J
 
     def curvature(self, w: np.ndarray, nu: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
         """``sum_i nu_i d^2 h_i / dw^2`` as blocks ``[(columns (s,), block (s, s)), ...]``, one per time.
@@ -305,9 +319,9 @@ class TaskSpaceFeature:
                     q[j] += eps[j]
                     M[:, j] = (nu[k] @ np.asarray(self.fk(q)[1], dtype=float) - base) / eps[j]
             M = 0.5 * (M + M.T)
-            b = self.basis_values[k]
-            cols = (self.idx[k][:, None] * self.Q + np.arange(self.Q)).reshape(-1)
-            blocks.append((cols, np.kron(np.outer(b, b), M)))
+            cols = self._block_columns[k]
+            # kron(b_k b_k^T, M) by broadcasting (np.kron's generic path costs more than the product)
+            blocks.append((cols, (self._basis_outer[k] * M[None, :, None, :]).reshape(cols.shape[0], cols.shape[0])))
         return blocks
 
 
@@ -349,6 +363,7 @@ class TrajectoryProblem:
         self._cost_linear, self._cost_other = self._split(costs, "cost")
         self._eq_linear, self._eq_other = self._split(equalities, "equality")
         self._affine: tuple | None = None
+        self._support_layout: _SupportLayout | None | bool = False  # False: not built yet
 
     def _split(self, features: Sequence, what: str) -> tuple[LinearFeature | None, tuple]:
         for f in features:
@@ -382,6 +397,31 @@ class TrajectoryProblem:
             value, jac = f(w)
             parts.append((np.asarray(value, dtype=float).ravel(), jac if type(jac) is sp.csr_matrix else sp.csr_matrix(jac)))
         return np.concatenate([p[0] for p in parts]), stack_csr([p[1] for p in parts], self.n)
+
+    def equalities_on_support(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple] | None:
+        """``h`` (q,) and ``dh/dw`` kept on the few columns it touches, without a sparse matrix.
+
+        Returns ``(h, support (s,), Js (q, s), pairs)`` with ``Js = dh/dw[:, support]`` and
+        ``pairs`` the (rows, cols) of the lower triangle of ``Js^T Js`` that are structurally
+        non-zero (for :class:`~corl.trajectory.banded.SupportGram`); or None when some nonlinear
+        equality does not offer ``jacobian_rows`` (then use :meth:`equalities`). The solver's
+        banded path calls this once per iterate: the layout is built on the first call.
+        """
+        if self._support_layout is False:
+            self._support_layout = _SupportLayout.build(self._eq_linear, self._eq_other)
+        layout = self._support_layout
+        if layout is None:
+            return None
+        Js = layout.Js_linear.copy()
+        values = []
+        if self._eq_linear is not None:  # A w - b on the columns the linear rows touch (a small dense product)
+            q_linear = self._eq_linear.dim
+            values.append(np.dot(Js[:q_linear], w[layout.support]) - self._eq_linear.b)
+        for f, rows_at, cols_at in zip(self._eq_other, layout.rows_at, layout.cols_at):
+            value, rows = f.jacobian_rows(w)
+            values.append(value)
+            Js[rows_at, cols_at] = rows
+        return np.concatenate(values), layout.support, Js, layout.pairs
 
     def equality_curvature(self, w: np.ndarray, nu: np.ndarray) -> SupportGram | None:
         """``sum_i nu_i d^2 h_i / dw^2`` (n, n) as a :class:`SupportGram`, or None when every
@@ -429,3 +469,40 @@ class TrajectoryProblem:
                 raise NumericalError("the linear cost features contain NaN or inf")
             self._affine = (H, c)
         return self._affine
+
+
+class _SupportLayout:
+    """Where the rows of the stacked equality Jacobian go in its dense block ``Js`` (q, s) on the
+    touched columns ``support`` (s,): constant, since the linear rows are constant and each
+    :class:`TaskSpaceFeature` row touches the same ``(degree + 1) Q`` columns at every w."""
+
+    __slots__ = ("support", "Js_linear", "rows_at", "cols_at", "pairs")
+
+    def __init__(self, support, Js_linear, rows_at, cols_at, pairs) -> None:
+        self.support, self.Js_linear, self.rows_at, self.cols_at, self.pairs = support, Js_linear, rows_at, cols_at, pairs
+
+    @classmethod
+    def build(cls, linear: LinearFeature | None, other: tuple) -> _SupportLayout | None:
+        """The layout, or None when a nonlinear equality has no ``jacobian_rows``/``columns``."""
+        if not other or not all(hasattr(f, "jacobian_rows") and hasattr(f, "columns") for f in other):
+            return None
+        A = sp.csr_matrix((0, 0)) if linear is None else linear.A
+        support = np.unique(np.concatenate([A.indices.astype(np.int64)] + [f.columns.ravel() for f in other]))
+        q = A.shape[0] + sum(f.dim for f in other)
+        Js_linear = np.zeros((q, support.shape[0]))
+        touched = np.zeros((q, support.shape[0]), dtype=bool)
+        if linear is not None:
+            Js_linear[: A.shape[0]] = A[:, support].toarray()
+            touched[: A.shape[0]] = Js_linear[: A.shape[0]] != 0.0
+        rows_at, cols_at = [], []
+        start = A.shape[0]
+        for f in other:
+            rows = np.arange(start, start + f.dim)[:, None]
+            cols = np.searchsorted(support, f.columns)
+            touched[rows, cols] = True
+            rows_at.append(rows)
+            cols_at.append(cols)
+            start += f.dim
+        touched = touched.astype(float)
+        pairs = np.nonzero(np.tril(touched.T @ touched))  # structural pattern of Js^T Js
+        return cls(support, Js_linear, tuple(rows_at), tuple(cols_at), pairs)

@@ -25,6 +25,11 @@ returning the constant Gauss-Newton Hessian ``2 Jr^T Jr`` (ndarray, scipy.sparse
 ``2 Jh^T Jh`` is kept as a :class:`~corl.trajectory.banded.SupportGram` on the few columns the
 constraints touch and H stays banded (factorized by LAPACK ``dpbtrf``).
 
+A problem with such a banded cost may also offer ``equalities_on_support(w)``, returning ``h`` and
+``dh/dw`` as a dense block on the few columns it touches (``(h, support, Js, pairs)``, see
+:meth:`~corl.trajectory.features.TrajectoryProblem.equalities_on_support`) or None: then no
+sparse Jh is built per iterate (``_Point.Jh`` is None and ``_Point.JhJh`` holds ``2 Jh^T Jh``).
+
 A problem may also offer ``equality_curvature(w, nu)``, returning ``sum_i nu_i d^2 h_i / dw^2``
 (a :class:`~corl.trajectory.banded.SupportGram`, ndarray or scipy.sparse, or None): the
 Lagrangian curvature that Gauss-Newton drops. It is added to H with ``nu = lam + 2 mu h``, which
@@ -56,14 +61,15 @@ class _Point:
     :func:`_gauss_newton` (filled on first use, reused when only lam or mu change).
     """
 
-    __slots__ = ("w", "r", "Jr", "h", "Jh", "rr", "hh", "err", "grams", "affine", "curvature")
+    __slots__ = ("w", "r", "Jr", "h", "Jh", "rr", "hh", "err", "grams", "affine", "curvature", "JhJh")
 
-    def __init__(self, w, r, Jr, h, Jh, rr: float, hh: float, affine=None, curvature=None) -> None:
+    def __init__(self, w, r, Jr, h, Jh, rr: float, hh: float, affine=None, curvature=None, JhJh=None) -> None:
         self.w, self.r, self.Jr, self.h, self.Jh, self.rr, self.hh = w, r, Jr, h, Jh, rr, hh
         self.err = _max_abs(h)
         self.grams: tuple | None = None
         self.affine = affine
         self.curvature = curvature  # problem.equality_curvature or None
+        self.JhJh = JhJh  # 2 Jh^T Jh as a SupportGram when Jh came as its support block (Jh is then None)
 
 
 def _checked_pair(pair, n: int, what: str, jac_name: str) -> tuple[np.ndarray, Jacobian]:
@@ -94,18 +100,45 @@ def _non_finite(what: str, w: np.ndarray, hint: str) -> NumericalError:
 def _evaluate(problem, w: np.ndarray) -> _Point:
     n = w.shape[0]
     r, Jr = _checked_pair(problem.residuals(w), n, "residuals", "dr/dw")
+    affine = getattr(problem, "affine_cost", None)
+    affine = None if affine is None else affine()
+    on_support = getattr(problem, "equalities_on_support", None)
+    if affine is not None and type(affine[0]) is BandedSPD and on_support is not None:
+        banded = _evaluate_on_support(problem, w, r, Jr, affine, on_support(w))
+        if banded is not None:
+            return banded
     h, Jh = _checked_pair(problem.equalities(w), n, "equalities", "dh/dw")
+    rr, hh = _finite_sumsq(r, h, w)
+    if (type(Jr) is not type(Jh)) and h.shape[0] > 0 and sp.issparse(Jr) != sp.issparse(Jh):  # mixed: go sparse
+        Jr, Jh = sp.csr_matrix(Jr), sp.csr_matrix(Jh)
+    curvature = getattr(problem, "equality_curvature", None) if h.shape[0] else None
+    return _Point(w, r, Jr, h, Jh, rr, hh, affine, curvature)
+
+
+def _evaluate_on_support(problem, w, r, Jr, affine, on_support) -> _Point | None:
+    """:func:`_evaluate` for a banded affine cost and equalities given as ``(h, support, Js, pairs)``
+    (``equalities_on_support``): ``2 Jh^T Jh`` goes straight to a SupportGram, no sparse Jh is
+    built. None when the problem could not give its equalities that way (or has none)."""
+    if on_support is None:
+        return None
+    h, support, Js, pairs = on_support
+    if h.shape[0] == 0:
+        return None
+    rr, hh = _finite_sumsq(r, h, w)
+    JhJh = SupportGram(support, 2.0 * (Js.T @ Js), w.shape[0], pairs, Js)
+    curvature = getattr(problem, "equality_curvature", None)
+    return _Point(w, r, Jr, h, None, rr, hh, affine, curvature, JhJh)
+
+
+def _finite_sumsq(r: np.ndarray, h: np.ndarray, w: np.ndarray) -> tuple[float, float]:
+    """``(r^T r, h^T h)``; raises a NumericalError naming the culprit when either is NaN or inf."""
     rr = _sumsq(r)
     hh = _sumsq(h)
     if not math.isfinite(rr):
         raise _non_finite("residuals", w, "check the cost features (a division by zero or an overflow) and the start")
     if not math.isfinite(hh):
         raise _non_finite("equalities", w, "check the projection constraint h(w, theta) and its domain")
-    if (type(Jr) is not type(Jh)) and h.shape[0] > 0 and sp.issparse(Jr) != sp.issparse(Jh):  # mixed: go sparse
-        Jr, Jh = sp.csr_matrix(Jr), sp.csr_matrix(Jh)
-    affine = getattr(problem, "affine_cost", None)
-    curvature = getattr(problem, "equality_curvature", None) if h.shape[0] else None
-    return _Point(w, r, Jr, h, Jh, rr, hh, None if affine is None else affine(), curvature)
+    return rr, hh
 
 
 def _sumsq(v: np.ndarray) -> float:
@@ -159,7 +192,9 @@ def _grams(pt: _Point) -> tuple:
     if pt.affine is not None:  # r = Jr w - b: constant 2 Jr^T Jr and gradient 2 Jr^T Jr w - 2 Jr^T b
         H, c = pt.affine
         JhJh = None
-        if q:
+        if pt.JhJh is not None:
+            JhJh = pt.JhJh
+        elif q:
             JhJh = SupportGram.from_jacobian(Jh, 2.0) if type(H) is BandedSPD else 2.0 * (Jh.T @ Jh)
         grams = (np.asarray(H @ pt.w, dtype=float).ravel() - c, H, JhJh)
     elif type(Jr) is not np.ndarray:  # scipy.sparse
@@ -236,7 +271,8 @@ def _gauss_newton(pt: _Point, lam: np.ndarray, mu: float) -> tuple[np.ndarray, J
             if C is not None:
                 if type(C) is SupportGram and type(H) is not BandedSPD:
                     C = C.toarray() if type(H) is np.ndarray else sp.csr_matrix(C.toarray())
-                H = H + C
+                if not (type(C) is SupportGram and C.add_into(H)):  # H is a new matrix: add in place
+                    H = H + C
     if type(H) is BandedSPD:
         g = np.asarray(g, dtype=float).ravel()
     elif type(H) is not np.ndarray:  # scipy.sparse
