@@ -108,7 +108,9 @@ def bench_door(
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from corl.errors import CorlError
-    from corl.experiments.door_bench import DOOR_METHODS, door_sweep, door_table
+    from corl.experiments.door_bench import DOOR_METHODS, door_sweep
+    from corl.experiments.report import door_table
+    from corl.tasks.door.task import FORCE_REFERENCE
     from corl.versions import library_versions
 
     names = _method_list(methods, default=list(DOOR_METHODS), allowed=DOOR_METHODS)
@@ -142,6 +144,7 @@ def bench_door(
                "safe_regions": regions, "wall_seconds": wall, "versions": library_versions()}
     _write_json(out / "door.json", payload)
     typer.echo(door_table(result.table, iterations=iterations, dmp_iterations=dmp_iterations,
+                          force_reference=FORCE_REFERENCE,
                           regions=result.regions))
     typer.echo(f"\n{len(names)} methods x {seeds} seeds in {wall:.1f} s; wrote {out / 'door.json'}")
 

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-__all__ = ["synthetic_table"]
+import numpy as np
+
+__all__ = ["synthetic_table", "door_table"]
 
 
 def _pm(mean, std, digits=2) -> str:
@@ -26,3 +28,41 @@ def synthetic_table(table: dict[str, dict], tolerance: float) -> str:
             f"{row['rollouts_mean']:>9.1f} {row['theta_trials_mean']:>12.1f}"
         )
     return "\n".join(lines)
+
+
+def door_table(table: dict[str, dict], *, iterations: int | None = None, dmp_iterations: int | None = None,
+               regions: dict | None = None, force_reference: float | None = None) -> str:
+    """Fig. 3 as text: ours beside the paper's for every method in ``table``."""
+    budget = "" if iterations is None else f", CORL: 1 round with <= {iterations} black-box trials"
+    if dmp_iterations is not None:
+        budget += f", DMP+PoWER: {dmp_iterations} trials"
+    lines = [f"Fig. 3, door benchmark (Algorithm 1{budget}; mean ± std over seeds)",
+             f"  our R = 1 - F / {force_reference:g} N" if force_reference else "  our R",
+             "  the paper's R is in other units: compare trends, not values",
+             "  max dist: largest Euclidean distance in theta (m) from a failure to the nearest safe grid point"]
+    if regions:
+        for region in regions.values():
+            lines.append(f"  safe region {region.key}: {region.success.shape[0]} x {region.success.shape[1]} grid, "
+                         f"{int(region.success.sum())} safe, resolution {np.round(region.spacing, 4).tolist()} m")
+    head = (f"{'Method':<11} {'highest R':>15} {'paper':>15}   {'failure rate':>15} {'paper':>15}   "
+            f"{'max dist':>17} {'paper':>17}   {'trials':>6} {'start R':>7}")
+    lines += [head, "-" * len(head)]
+    for name, row in table.items():
+        p = row["paper"]
+        lines.append(
+            f"{name:<11} {_pm(row['highest_return_mean'], row['highest_return_std'], 3):>15} "
+            f"{_pm(p['highest_return_mean'], p['highest_return_std'], 3):>15}   "
+            f"{_pm(row['failure_rate_mean'], row['failure_rate_std'], 3):>15} "
+            f"{_pm(p['failure_rate_mean'], p['failure_rate_std'], 3):>15}   "
+            f"{_pm(row['max_dist_mean'], row['max_dist_std'], 4):>17} "
+            f"{_pm(p['max_dist_mean'], p['max_dist_std'], 4):>17}   "
+            f"{row['trials_mean']:>6.1f} {_fmt(row['start_return_mean']):>7}"
+        )
+    if "DMP+PoWER" in table:
+        lines.append("  DMP+PoWER: the paper reports no noticeable learning after 150 iterations (no numbers); "
+                     "start R is the fitted DMP's return")
+    return "\n".join(lines)
+
+
+def _fmt(value) -> str:
+    return "-" if value is None else f"{value:.3f}"
