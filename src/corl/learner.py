@@ -219,6 +219,7 @@ class CORL:
                     return w_star, r_star
                 w_star, r_star = w_i, float(outcome.return_)  # set best w* if rollout successful
                 self._best = Best(w_star, theta_star, r_star, cost_of(task, w_star))
+        task_star = self.task  # the task whose constraints w* satisfies (phase steps may re-time it)
         if cfg.max_phase_steps > 0 and getattr(task, "spline", None) is not None:
             w_star, r_star, w_i = yield from self._phase(problem, w_star, r_star, w_i, theta_star)
         if not cfg.rollout_every_step and not np.array_equal(w_i, w_star):
@@ -226,6 +227,8 @@ class CORL:
             if outcome.success:
                 w_star, r_star = w_i, float(outcome.return_)
                 self._best = Best(w_star, theta_star, r_star, cost_of(task, w_star))
+            else:
+                self.task = task_star
         return w_star, r_star
 
     def _phase(self, problem, w_star, r_star, w_i, theta_star):
@@ -233,17 +236,26 @@ class CORL:
 
         Each step re-times the path (trust region on the phase profile), re-fits the B-spline and
         projects it back onto ``h = 0`` (Eq. 18); it is kept only if it lowers J, and rolled out
-        like a trajectory step. Contact times (``task.pinned_times``) keep their phase.
+        like a trajectory step. A task with ``retimed(time_map)`` lets its contact instants move
+        with the phase ("smoother motions also w.r.t. the time course of the constraints"): the
+        learner continues with the re-timed task. Without it, ``task.pinned_times`` keep their phase.
         """
         from corl.trajectory.phase import optimize_phase, retime
 
-        task, cfg = self.task, self.config
-        pinned = tuple(getattr(task, "pinned_times", ()))
-        J_i = cost_of(task, w_i)
+        cfg = self.config
+        movable = callable(getattr(self.task, "retimed", None))
+        pinned = () if movable else tuple(getattr(self.task, "pinned_times", ()))
+        J_i = cost_of(self.task, w_i)
         for _ in range(cfg.max_phase_steps):
+            task = self.task
             phase = optimize_phase(task.spline, w_i, pinned_times=pinned)
             if not phase.cost_after < phase.cost_before:
                 break
+            if movable:
+                grid = np.linspace(0.0, task.spline.duration, phase.p.shape[0])
+                T = task.spline.duration
+                task = task.retimed(lambda t, p=phase.p: np.interp(np.asarray(t) / T, p, grid))
+                problem = FunctionProblem(task.cost_residuals, lambda w, task=task: task.projection(w, theta_star))
             retimed = retime(task.spline, w_i, phase.p, equalities=problem)
             if retimed.projection is not None and not self._feasible(retimed.projection):
                 break
@@ -257,6 +269,7 @@ class CORL:
                     break
                 w_star, r_star = w_i, float(outcome.return_)
                 self._best = Best(w_star, theta_star, r_star, J_i)
+            self.task = task  # the re-timed contacts hold from here on
         return w_star, r_star, w_i
 
     def _feasible(self, result) -> bool:

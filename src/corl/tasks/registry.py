@@ -25,7 +25,7 @@ def load_task(spec: str, *, seed: int = 0) -> Task:
     if spec == "door":
         from corl.tasks.door.task import DoorTask
 
-        return DoorTask()
+        return DoorTask(seed=seed)
     if ":" not in spec:
         raise InputError(f"unknown task '{spec}'; use one of {', '.join(BUILTIN_TASKS)} "
                          "or an import path 'package.module:make_task'")

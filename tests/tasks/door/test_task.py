@@ -80,3 +80,34 @@ def test_short_learning_run_improves_J_and_keeps_success(task):
     J0 = cost_of(task, learner.history[0][0].w)
     assert learner.best.J < 0.5 * J0
     assert all(np.linalg.norm(b.w - a.w) <= 0.1 + 1e-9 for (a, _), (b, _) in zip(learner.history, learner.history[1:]))
+
+
+def test_force_noise_is_seeded_and_repeatable(task):
+    from corl.errors import InputError
+    from corl.tasks.door.task import FORCE_REFERENCE, DoorTask
+
+    w = task.demonstration().w
+    exact = task.rollout(w)
+    a, b = DoorTask(force_noise=0.5, seed=1), DoorTask(force_noise=0.5, seed=2)
+    ra, rb = a.rollout(w), b.rollout(w)
+    assert ra.success and rb.success  # S stays exact
+    assert ra.return_ != exact.return_ and ra.return_ != rb.return_
+    assert a.rollout(w).return_ == ra.return_  # the same trial reads the same (replay from a store)
+    assert abs(ra.return_ - exact.return_) < 5 * 0.5 / FORCE_REFERENCE
+    with pytest.raises(InputError, match="force_noise"):
+        DoorTask(force_noise=-1.0)
+
+
+def test_retimed_moves_the_contact_instants_only(task):
+    from corl.errors import InputError
+
+    moved = task.retimed(lambda t: np.where(t < 4.5, t + 0.05, t))  # the end stays at T
+    assert np.allclose(moved.contact_times[:-1], task.contact_times[:-1] + 0.05)
+    assert moved.t_contact == pytest.approx(task.t_contact + 0.05)
+    assert task.contact_times[0] == task.contacts[0].time  # the original is untouched
+    demo = task.demonstration()
+    h, _ = moved.projection(demo.w, demo.theta)
+    h0, _ = task.projection(demo.w, demo.theta)
+    assert np.abs(h).max() > 10 * np.abs(h0).max()  # the constraints now hold at other instants
+    with pytest.raises(InputError, match="increasing"):
+        task.retimed(lambda t: t[::-1])
