@@ -154,6 +154,12 @@ class Task(Protocol):
     name : short name used in messages and files.
     theta_bounds : the box ``theta`` is searched in, (m,) each.
     w_bounds : a box for methods that search ``w`` directly, or None.
+
+    Optional members the learner uses when present: ``method_settings()`` (hyperparameters in the
+    task's units), ``projection_metric`` (sparse ``L``: Eq. 18 in ``||L (w - w*)||``), ``spline``
+    (enables phase steps, Eq. 10), ``retimed(time_map)`` (a copy whose time-indexed constraints
+    hold at ``time_map(times)``: phase steps then move the contact instants) or ``pinned_times``
+    (times whose phase stays fixed), ``reference(w, rate)`` (the joint trajectory ``corl ask`` writes).
     """
 
     name: str
