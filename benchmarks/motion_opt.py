@@ -1,4 +1,4 @@
-"""Motion optimization at robot scale (Eq. 7-9, Eq. 6): corl's banded Gauss-Newton vs CasADi + Ipopt.
+"""Motion optimization at robot scale (Eq. 7-9, Eq. 6): corl's banded SQP vs CasADi + Ipopt.
 
     python benchmarks/motion_opt.py [--repeats 7] [--json PATH]
 
@@ -10,8 +10,10 @@ Start: the least-squares B-spline fit of a scripted, non-smooth demonstration (w
 by straight lines).
 
 corl: :func:`corl.trajectory.solve` on a :class:`corl.trajectory.features.TrajectoryProblem`
-(constant banded ``2 A^T A``, banded Cholesky per Newton step, constraint curvature from the
-closed-form fk Hessian), ``SolverConfig.trajectory()``: max|h| <= 1e-8.
+with ``SolverConfig.trajectory()``: SQP (Newton-KKT) steps with the constraint curvature from the
+closed-form fk Hessian, one banded Cholesky per step and the Schur complement on the few
+constraint rows (:mod:`corl.trajectory.sqp`), max|h| <= 1e-8. The scaling table also shows the
+augmented-Lagrangian path (``method="al"``, one run per size) for comparison.
 CasADi + Ipopt: the identical NLP (same A, same equalities, same start) with the exact Hessian,
 tol 1e-9; its time is the ``solver(...)`` call only - building the expression graph and the
 ``nlpsol`` object is excluded. Times are medians over repeats. OPENBLAS_NUM_THREADS=1 is set
@@ -25,6 +27,7 @@ import json
 import math
 import os
 import time
+from dataclasses import replace
 
 os.environ["OPENBLAS_NUM_THREADS"] = "1"
 
@@ -38,7 +41,6 @@ from corl.trajectory.features import (  # noqa: E402
     acceleration_feature,
     configuration_feature,
 )
-from corl.trajectory.linalg import factorize_spd  # noqa: E402
 
 Q = 7
 T = 5.0
@@ -47,6 +49,7 @@ AXES = "zyzyzyz"  # joint i rotates about this axis of its own frame, then the l
 LINKS_LIST = [0.33, 0.0, 0.40, 0.0, 0.39, 0.0, 0.13]
 OFFSET = np.array([0.05, -0.04, 0.06])  # the contact target relative to the demonstration's hand
 CONFIG = SolverConfig.trajectory()
+AL_CONFIG = replace(CONFIG, method="al")  # the augmented Lagrangian, for the scaling comparison
 
 
 # -- 7-DoF forward kinematics --------------------------------------------------------------------
@@ -149,24 +152,27 @@ def build(P: int):
     return spline, problem, w0, target
 
 
-def solve_corl(problem, w0):
+def solve_corl(problem, w0, config=CONFIG):
     t0 = time.perf_counter()
-    result = solve(problem, w0, config=CONFIG)
+    result = solve(problem, w0, config=config)
     return result, (time.perf_counter() - t0) * 1e3
 
 
-def newton_step_ms(problem, w, repeats: int) -> float:
-    """One Gauss-Newton step of Eq. 8 as the solver takes it: evaluate r, h and their Jacobians,
-    g and H = 2 (A^T A + mu Jh^T Jh) (banded), banded Cholesky, solve."""
-    from corl.trajectory.model import _evaluate, _gauss_newton
+def newton_step_ms(problem, w, lam, repeats: int) -> float:
+    """One SQP iteration as the solver takes it at (w, lam): evaluate r, h and their Jacobians, the
+    banded KKT Hessian H = 2 A^T A + sum_i lam_i d2h_i + 2 mu Jh^T Jh, its banded Cholesky and the
+    Schur-complement solve for the step and the new multipliers."""
+    from corl.trajectory.kkt import constrained_step
+    from corl.trajectory.model import _evaluate, _grams, _max_diagonal
+    from corl.trajectory.sqp import _Model
 
-    lam = np.zeros(problem.equalities(w)[0].shape[0])
     times = []
     for _ in range(repeats):
         t0 = time.perf_counter()
         pt = _evaluate(problem, w)
-        g, H = _gauss_newton(pt, lam, 10.0)
-        d = -factorize_spd(H, 1e-9).solve(g)
+        _, H_J, gram = _grams(pt)
+        model = _Model(pt, lam, _max_diagonal(H_J) / _max_diagonal(gram), True, False)
+        d, _, _, _ = constrained_step(model.H, model.g, model.support, model.Js, pt.h)
         times.append(time.perf_counter() - t0)
     assert np.all(np.isfinite(d))
     return float(np.median(times) * 1e3)
@@ -223,7 +229,7 @@ def main() -> None:
     runs = [solve_corl(problem, w0) for _ in range(args.repeats)]
     result = runs[0][0]
     corl_ms = float(np.median([ms for _, ms in runs]))
-    step_ms = newton_step_ms(problem, result.w, 50)
+    step_ms = newton_step_ms(problem, result.w, result.multipliers, 50)
     print(f"7-DoF arm, P = 150 control points, n = {spline.n}, K = 300, contact at t_c = {T_CONTACT:g} s")
     print(f"corl: {result.status}")
     print("per-iteration report (iteration, outer, J, max|h|, ||step||):")
@@ -254,7 +260,7 @@ def main() -> None:
     ratio = casadi_ms / corl_ms if casadi_ms else None
     if ratio:
         print(f"ratio casadi / corl: {ratio:.2f}x   (relative J difference {abs(result.cost - J_casadi) / J_casadi:.1e})")
-    print(f"one Newton step (evaluate + banded H + banded Cholesky + solve): {step_ms:.3f} ms  (target < 1 ms)")
+    print(f"one SQP step (evaluate + banded KKT Hessian + banded Cholesky + Schur solve): {step_ms:.3f} ms  (target < 1 ms)")
 
     # Eq. 18 (Alg. 1, step 2): a new theta moves the contact target by ~2 cm; project w* onto it.
     moved = TrajectoryProblem(
@@ -278,7 +284,7 @@ def main() -> None:
     )
 
     print()
-    print(f"{'P':>6}{'n':>8}{'iterations':>12}{'ms':>10}{'ms / n * 1000':>16}")
+    print(f"{'P':>6}{'n':>8}{'iterations':>12}{'ms':>10}{'ms / n * 1000':>16}{'AL iterations':>15}{'AL ms':>10}")
     scaling = {}
     for P in (50, 150, 500, 1500):
         _, prob, w_init, _ = build(P)
@@ -286,7 +292,11 @@ def main() -> None:
         ms = float(np.median([t for _, t in times]))
         scaling[str(P)] = ms
         res = times[0][0]
-        print(f"{P:>6}{P * Q:>8}{res.iterations:>12}{ms:>10.2f}{ms / (P * Q) * 1000:>16.3f}   {'ok' if res.converged else res.status}")
+        al, al_ms = solve_corl(prob, w_init, AL_CONFIG)
+        print(
+            f"{P:>6}{P * Q:>8}{res.iterations:>12}{ms:>10.2f}{ms / (P * Q) * 1000:>16.3f}{al.iterations:>15}{al_ms:>10.1f}"
+            f"   {'ok' if res.converged else res.status}"
+        )
 
     if args.json:
         out = {

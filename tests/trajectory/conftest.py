@@ -1,9 +1,18 @@
-"""Shared fixtures of the trajectory tests: a small spatial 7-DoF arm with closed-form derivatives."""
+"""Shared fixtures of the trajectory tests: a small spatial 7-DoF arm with closed-form derivatives,
+and a reaching problem on it (B-spline, acceleration cost, start/goal and a contact point)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+
+from corl.trajectory.bspline import BSpline
+from corl.trajectory.features import (
+    TaskSpaceFeature,
+    TrajectoryProblem,
+    acceleration_feature,
+    configuration_feature,
+)
 
 AXES = "zyzyzyz"
 LINKS = (0.33, 0.0, 0.40, 0.0, 0.39, 0.0, 0.13)
@@ -46,3 +55,36 @@ def arm_fk_hessian(q: np.ndarray) -> np.ndarray:
 @pytest.fixture
 def arm():
     return arm_fk, arm_fk_hessian
+
+
+def reaching_problem(fk, fk_hessian, P=14, offset=(0.04, -0.03, -0.06)):
+    """Squared accelerations, start and goal fixed, the hand at a point at t_c = 0.45 T (n = 7 P).
+
+    Returns (spline, problem, w0) with w0 a smooth fit that misses the contact point by ``offset``.
+    """
+    spline = BSpline(P, 7, duration=2.0)
+    t = np.linspace(0.0, 2.0, 6 * P)
+    demo = np.stack([0.4 * np.sin(t + j) + 0.1 * j for j in range(7)], axis=1)
+    w0 = spline.fit(t, demo)
+    target = fk(spline.positions(w0, [0.9])[0])[0] + np.asarray(offset)
+    problem = TrajectoryProblem(
+        spline.n,
+        [acceleration_feature(spline, 2 * P)],
+        [
+            configuration_feature(spline, 0.0, demo[0]),
+            configuration_feature(spline, 2.0, demo[-1]),
+            TaskSpaceFeature(spline, fk, [0.9], target, fk_hessian=fk_hessian),
+        ],
+    )
+    return spline, problem, w0
+
+
+@pytest.fixture
+def reaching(arm):
+    """:func:`reaching_problem` on the 7-DoF arm: ``reaching(P=14, offset=...) -> (spline, problem, w0)``."""
+
+    def build(P=14, offset=(0.04, -0.03, -0.06), fk_hessian=True):
+        fk, hessian = arm
+        return reaching_problem(fk, hessian if fk_hessian else None, P=P, offset=offset)
+
+    return build

@@ -3,50 +3,27 @@
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from scipy.optimize import minimize
 
 from corl.trajectory.banded import BandedSPD
-from corl.trajectory.bspline import BSpline
-from corl.trajectory.features import (
-    TaskSpaceFeature,
-    TrajectoryProblem,
-    acceleration_feature,
-    configuration_feature,
-)
 from corl.trajectory.model import _evaluate, _gauss_newton
 from corl.trajectory.solver import SolverConfig, project, solve
 
 
-def reaching_problem(fk, fk_hessian, P=14, offset=(0.04, -0.03, -0.06)):
-    """Squared accelerations, start and goal fixed, the hand at a point at t_c = 0.45 T (n = 7 P)."""
-    spline = BSpline(P, 7, duration=2.0)
-    t = np.linspace(0.0, 2.0, 6 * P)
-    demo = np.stack([0.4 * np.sin(t + j) + 0.1 * j for j in range(7)], axis=1)
-    w0 = spline.fit(t, demo)
-    target = fk(spline.positions(w0, [0.9])[0])[0] + np.asarray(offset)
-    problem = TrajectoryProblem(
-        spline.n,
-        [acceleration_feature(spline, 2 * P)],
-        [
-            configuration_feature(spline, 0.0, demo[0]),
-            configuration_feature(spline, 2.0, demo[-1]),
-            TaskSpaceFeature(spline, fk, [0.9], target, fk_hessian=fk_hessian),
-        ],
-    )
-    return spline, problem, w0
-
-
-def test_banded_path_is_used_and_the_result_satisfies_kkt_and_matches_slsqp(arm):
-    spline, problem, w0 = reaching_problem(*arm)
+@pytest.mark.parametrize("method", ["al", "sqp"])
+def test_banded_path_is_used_and_the_result_satisfies_kkt_and_matches_slsqp(reaching, method):
+    spline, problem, w0 = reaching()
     assert spline.n == 98
     pt = _evaluate(problem, w0)
     _, H = _gauss_newton(pt, np.zeros(17), 1.0)
     assert isinstance(H, BandedSPD) and H.bandwidth < 35
-    result = solve(problem, w0, config=SolverConfig.trajectory())
+    result = solve(problem, w0, config=replace(SolverConfig.trajectory(), method=method))
     assert result.converged, result.status
+    assert ("SQP" in result.status) == (method == "sqp")
     h, Jh = problem.equalities(result.w)
     r, Jr = problem.residuals(result.w)
     assert np.abs(h).max() < 1e-8
@@ -68,8 +45,8 @@ def test_banded_path_is_used_and_the_result_satisfies_kkt_and_matches_slsqp(arm)
     np.testing.assert_allclose(result.w, reference.x, atol=1e-4)
 
 
-def test_history_reports_every_step_and_the_trust_region_holds(arm):
-    spline, problem, w0 = reaching_problem(*arm)
+def test_history_reports_every_step_and_the_trust_region_holds(reaching):
+    spline, problem, w0 = reaching()
     radius = 0.2
     result = solve(problem, w0, radius=radius, config=SolverConfig.trajectory())
     assert result.trust_region_active
@@ -80,9 +57,8 @@ def test_history_reports_every_step_and_the_trust_region_holds(arm):
     assert result.history[-1].constraint_error < result.history[0].constraint_error
 
 
-def test_project_works_with_sparse_spline_constraints_at_n_1200(arm):
-    fk, fk_hessian = arm
-    spline, problem, w0 = reaching_problem(fk, fk_hessian, P=172)
+def test_project_works_with_sparse_spline_constraints_at_n_1200(reaching):
+    spline, problem, w0 = reaching(P=172)
     assert spline.n == 1204
     start = time.perf_counter()
     result = project(problem, w0)

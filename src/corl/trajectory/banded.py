@@ -236,19 +236,25 @@ class BandedCholeskyFactor:
 
 
 def banded_cholesky(
-    ab: np.ndarray, shift: float = 0.0, *, perm: np.ndarray | None = None, what: str = "matrix"
+    ab: np.ndarray,
+    shift: float = 0.0,
+    *,
+    perm: np.ndarray | None = None,
+    what: str = "matrix",
+    ladder: bool = True,
 ) -> BandedCholeskyFactor:
     """Factorize ``H + shift I`` given in lower band storage ``ab`` (u + 1, n) (LAPACK ``dpbtrf``).
 
     When the factorization fails (H not positive definite), a jitter ladder of ``1e-12 .. 1e-4``
-    times the mean diagonal is added, as in :func:`corl.numerics.cholesky`.
+    times the mean diagonal is added, as in :func:`corl.numerics.cholesky`; ``ladder=False`` skips
+    the ladder (a caller that tests the inertia, as the SQP step of :mod:`corl.trajectory.kkt`).
 
     Raises
     ------
     NumericalError
-        If the matrix stays indefinite after the largest jitter.
+        If the matrix stays indefinite after the largest jitter (at once with ``ladder=False``).
     """
-    for jitter in _jitters(ab):
+    for jitter in _jitters(ab) if ladder else (0.0,):
         shifted = ab.copy(order="F")
         if shift or jitter:
             shifted[0] += shift + jitter
@@ -257,9 +263,10 @@ def banded_cholesky(
             return BandedCholeskyFactor(c, perm, jitter)
         if info < 0:
             raise InputError(f"banded Cholesky: argument {-info} had an illegal value (ab of shape {ab.shape})")
+    tried = f"even with jitter {_JITTER_LADDER[-1]:g} x mean diagonal" if ladder else "(no jitter tried)"
     raise NumericalError(
-        f"banded Cholesky of the {what} failed: not positive definite even with jitter "
-        f"{_JITTER_LADDER[-1]:g} x mean diagonal; add damping or check that the Jacobians are finite"
+        f"banded Cholesky of the {what} failed: not positive definite {tried}; "
+        "add damping or check that the Jacobians are finite"
     )
 
 

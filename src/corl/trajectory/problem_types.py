@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from enum import Enum
 from typing import Any, Callable, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
@@ -30,6 +31,7 @@ __all__ = [
     "LeastSquaresProblem",
     "FunctionProblem",
     "SolverConfig",
+    "SolverMethod",
     "IterationRecord",
     "SolveResult",
     "DEFAULT_CONFIG",
@@ -89,6 +91,21 @@ class FunctionProblem:
 # ---------------------------------------------------------------------------------------------
 # Configuration and result
 # ---------------------------------------------------------------------------------------------
+class SolverMethod(str, Enum):
+    """How :func:`~corl.trajectory.solver.solve` treats the equality constraints of Eq. 8.
+
+    AUGMENTED_LAGRANGIAN ("al") : multiplier updates around damped Gauss-Newton steps on L_A; any problem.
+    SQP ("sqp") : Newton-KKT steps on ``h = 0`` with the Schur complement of a banded Hessian and a
+        merit line search (:mod:`corl.trajectory.sqp`), for problems with a banded affine cost
+        (``affine_cost``) and equalities; other problems, and the few states where an SQP step is
+        not available (rank-deficient ``dh/dw``, constraints out of reach of the ball), use the
+        augmented Lagrangian.
+    """
+
+    AUGMENTED_LAGRANGIAN = "al"
+    SQP = "sqp"
+
+
 @dataclass(frozen=True)
 class SolverConfig:
     """Settings of :func:`~corl.trajectory.solver.solve`.
@@ -111,6 +128,10 @@ class SolverConfig:
         ``inner_rtol`` times their first accepted step (0 for exact solves); the final solve is always tight.
     damping_init : first Levenberg-Marquardt damping, relative to the largest diagonal entry of H.
     damping_max : relative damping at which no decrease of L_A is possible any more (stall).
+    method : :class:`SolverMethod` (or its value ``"al"`` / ``"sqp"``); the augmented Lagrangian
+        by default, SQP in the :meth:`trajectory` preset. The penalty settings (``mu_*``,
+        ``violation_decrease``, ``inner_rtol``, ``max_outer_iterations``) and the damping apply
+        to the augmented Lagrangian only (and to it when SQP hands over).
     """
 
     tol_constraint: float = 1e-6
@@ -124,8 +145,17 @@ class SolverConfig:
     inner_rtol: float = 1e-2
     damping_init: float = 1e-12
     damping_max: float = 1e12
+    method: SolverMethod = SolverMethod.AUGMENTED_LAGRANGIAN
 
     def __post_init__(self) -> None:
+        if type(self.method) is not SolverMethod:
+            try:
+                object.__setattr__(self, "method", SolverMethod(self.method))
+            except (ValueError, TypeError):
+                choices = ", ".join(repr(m.value) for m in SolverMethod)
+                raise InputError(
+                    f"SolverConfig.method must be a SolverMethod or one of {choices}, got {self.method!r}"
+                ) from None
         for name in ("tol_constraint", "tol_step", "mu_init", "mu_max", "damping_init", "damping_max"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
@@ -158,10 +188,18 @@ class SolverConfig:
     @classmethod
     def trajectory(cls) -> SolverConfig:
         """B-spline trajectories with acceleration costs (Eq. 9) and contact constraints (Eq. 6):
+        SQP steps on the banded Hessian (iterations independent of the number of knots),
         max|h| <= 1e-8, a penalty 1e-4 x the relative default (the cost's Hessian scales with
-        1/dt^4, so the default penalty would dwarf it) and loose inner solves (tuned on
-        ``benchmarks/motion_opt.py``)."""
-        return cls(tol_constraint=1e-8, tol_step=1e-9, max_iterations=500, mu_init=1e-4, inner_rtol=0.3)
+        1/dt^4, so the default penalty would dwarf it) and loose inner solves for the augmented
+        Lagrangian fallback (tuned on ``benchmarks/motion_opt.py``)."""
+        return cls(
+            tol_constraint=1e-8,
+            tol_step=1e-9,
+            max_iterations=500,
+            mu_init=1e-4,
+            inner_rtol=0.3,
+            method=SolverMethod.SQP,
+        )
 
     @classmethod
     def precise(cls) -> SolverConfig:
@@ -182,8 +220,9 @@ class IterationRecord(NamedTuple):
     cost : ``J(w) = r^T r``.
     constraint_error : ``max |h(w)|`` (0 without constraints).
     step_norm : ``||w - w_previous||``.
-    damping : Levenberg-Marquardt damping used for the step (absolute).
-    mu : penalty weight at the time of the step.
+    damping : Levenberg-Marquardt damping used for the step (absolute); for an SQP step the
+        multiplier of the trust-region ball (0 when the ball is not active).
+    mu : penalty weight at the time of the step; for an SQP step that of its merit function.
     w : (n,) the iterate.
     """
 
@@ -210,8 +249,9 @@ class SolveResult:
         ball's normal when the trust region is active).
     converged : True when the inner problem converged and ``constraint_error <= tol_constraint``.
     status : what happened, in words (why it stopped and what to change if it failed).
-    iterations : Gauss-Newton iterations (rejected steps included).
-    outer_iterations : augmented-Lagrangian iterations.
+    iterations : Gauss-Newton or SQP iterations (rejected steps and backtracks included: one per
+        evaluation after the start).
+    outer_iterations : augmented-Lagrangian iterations (1 when SQP converged on its own).
     evaluations : calls of ``residuals`` (each paired with one call of ``equalities``).
     trust_region_active : True when ``||w - center||`` is at the radius.
     history : one :class:`IterationRecord` per accepted step, the start first.

@@ -14,7 +14,10 @@ Numerical Optimization, Framework 17.3; Toussaint's KOMO [27]) around Levenberg-
 Gauss-Newton steps, each of which minimises the quadratic model exactly inside the ball (More &
 Sorensen's Newton iteration on the ball multiplier, :mod:`corl.trajectory.linalg`), so every
 iterate satisfies the trust-region constraint. The model itself (evaluation, gradient, Gauss-Newton
-Hessian) lives in :mod:`corl.trajectory.model`.
+Hessian) lives in :mod:`corl.trajectory.model`. With ``SolverConfig(method="sqp")`` (the
+``trajectory`` preset), a problem with a banded affine cost is solved by SQP instead
+(:mod:`corl.trajectory.sqp`: Newton-KKT steps, iterations independent of the number of knots),
+which hands over to the augmented Lagrangian where it has no step.
 
 Eq. 18 is solved by :func:`project`: restoration and tangent steps along ``h = 0``
 (:mod:`corl.trajectory.projection`), which converge fast where the augmented Lagrangian is only
@@ -74,13 +77,16 @@ from corl.trajectory.problem_types import (  # re-exported: corl.trajectory.solv
     LeastSquaresProblem,
     SolveResult,
     SolverConfig,
+    SolverMethod,
 )
 from corl.trajectory.projection import project_on_manifold
+from corl.trajectory.sqp import sqp, sqp_applies
 
 __all__ = [
     "LeastSquaresProblem",
     "FunctionProblem",
     "SolverConfig",
+    "SolverMethod",
     "IterationRecord",
     "SolveResult",
     "DEFAULT_CONFIG",
@@ -316,8 +322,14 @@ def solve(
     run = _Run(problem, config, center, radius)
     pt = run.evaluate(w)
     run.record(pt, 0.0, 0.0, 0.0)
+    handover = ""
+    if sqp_applies(pt, config):  # banded affine cost with equalities (B-spline trajectories)
+        pt, lam, converged, status = sqp(run, pt)
+        if lam is not None:
+            return _result(pt, run, lam, 0.0, converged, status)
+        handover = f" (after {run.iterations} SQP iterations, which stopped: {status})"
     pt, lam, mu, converged, status = _augmented_lagrangian(run, pt)
-    return _result(pt, run, lam, mu, converged, status)
+    return _result(pt, run, lam, mu, converged, status + handover)
 
 
 def _augmented_lagrangian(run: _Run, pt: _Point) -> tuple[_Point, np.ndarray, float, bool, str]:

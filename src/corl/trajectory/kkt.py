@@ -1,0 +1,299 @@
+"""Equality-constrained Newton (KKT) steps on a banded Hessian, inside the trust region of Eq. 8.
+
+The SQP iteration of :mod:`corl.trajectory.sqp` needs, at each iterate, the step ``d`` and the new
+multipliers ``lam`` of the equality-constrained quadratic model
+
+    min_d  g^T d + d^T H d / 2   s.t.  Jh d = -h,   ||u + d|| <= radius,
+
+whose KKT conditions (Nocedal & Wright, Eq. 16.4, with the ball multiplier ``nu`` of More &
+Sorensen 1983) are
+
+    (H + nu I) d + Jh^T lam = -(g + nu u),   Jh d = -h,   nu >= 0,   nu (||u + d|| - radius) = 0.
+
+H is banded (the k-order Markov cost of Eq. 7), ``Jh`` has few rows (start, goal and contact
+constraints: q ~ 17), so the KKT system is solved by the Schur complement on one banded Cholesky
+factor ``H + nu I = L L^T`` (N&W Sec. 16.2, the range-space method)::
+
+    W = L^{-1} Jh^T (n, q),   S = W^T W = Jh (H + nu I)^{-1} Jh^T (q, q),
+    v = L^{-1} b,   lam = S^{-1} (c - W^T v),   d = -L^{-T} (v + W lam)
+
+for ``(H + nu I) d + Jh^T lam = -b``, ``Jh d = -c``: one ``dpbtrf``, forward substitutions for
+the columns of W (each from its first non-zero row on) and one solve per right-hand side,
+``O(n u^2 + q n u)``: linear in n.
+
+When the step leaves the ball, ``nu > 0`` solves ``||u + d(nu)|| = radius``. The new offset
+``z = u + d`` splits into ``z_min``, the min-norm point of ``Jh z = Jh u - h`` in range(Jh^T)
+(independent of nu), and an orthogonal part in null(Jh) of norm ``||y_null(nu)||``, the secular
+function of the reduced trust-region problem. So More & Sorensen's Newton iteration on
+``1 / ||y_null|| - 1 / r_null`` with ``r_null^2 = radius^2 - ||z_min||^2`` raises nu monotonically
+from a shift where the step is too long; its derivative needs one more KKT solve. When H itself
+is indefinite (constraint curvature), the iteration starts from a shift that makes it definite
+and bisects away from indefinite shifts; when the boundary is not reached above them (the hard
+case) there is no step (:class:`IndefiniteHessian`). When ``||z_min|| >= radius`` the linearized
+constraints cannot be met inside the ball (:class:`Unreachable`).
+
+Glossary
+--------
+H        : (n, n) :class:`~corl.trajectory.banded.BandedSPD`, the Hessian of the Lagrangian (plus
+           ``2 mu Jh^T Jh``); ``H + nu I`` must be positive definite
+g, b, c  : (n,) gradient of the model; right-hand sides (n,) and (q,) of a KKT solve
+h        : (q,) constraint values;  Jh: their Jacobian, given on its support as ``Js`` (q, s)
+           with ``Jh[:, support] = Js`` and zeros elsewhere
+nu       : multiplier of the ball ``||u + d|| <= radius`` (a shift of H)
+u, z     : offsets from the ball's center of the current point and of the new point, (n,)
+L, W, S  : banded Cholesky factor of ``H + nu I``, ``L^{-1} Jh^T`` (n, q), Schur complement (q, q)
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.linalg.lapack import dpotrf, dpotrs, dtbtrs
+
+from corl.errors import NumericalError
+from corl.trajectory.banded import BandedSPD, banded_cholesky
+
+__all__ = ["StepFailure", "IndefiniteHessian", "Unreachable", "KKTSystem", "constrained_step"]
+
+_DEGENERATE = 1e-14  # S or Jh Jh^T is singular when its smallest pivot^2 is below this x its largest diagonal
+_SECULAR_TOL = 1e-12  # relative accuracy of ||z|| = radius, as corl.trajectory.linalg
+_SECULAR_MAX_ITER = 50
+_REACH_MARGIN = 1e-6  # the ball must leave this fraction of radius^2 to the null-space part of the step
+_MAX_INDEFINITE = 2  # indefinite shifts met in the ball iteration before it gives up (the hard case)
+
+
+class StepFailure(Exception):
+    """No KKT step at this point (the SQP hands over to the augmented Lagrangian); ``str`` says why."""
+
+
+class IndefiniteHessian(StepFailure):
+    """``H + nu I`` is not positive definite (the constraint curvature outweighs the cost's)."""
+
+
+class Unreachable(StepFailure):
+    """The linearized constraints ``Jh d = -h`` have no solution inside the ball."""
+
+
+class KKTSystem:
+    """The KKT matrix ``[[H + shift I, Jh^T], [Jh, 0]]``, factorized by the Schur complement.
+
+    With ``H + shift I = L L^T`` (banded) and ``W = L^{-1} Jh^T`` (n, q), the Schur complement is
+    ``S = W^T W`` and a solve needs one forward and one backward substitution with L. Each column
+    of ``Jh^T`` is zero above its first non-zero, and so is its column of W: the forward
+    substitutions start there (the goal rows of a trajectory cost almost nothing).
+
+    Parameters
+    ----------
+    H : (n, n) banded Hessian; ``shift`` : multiple of the identity added to it (>= 0).
+    support : (s,) sorted columns that ``Jh`` touches;  Js : (q, s) ``Jh[:, support]``.
+
+    Raises
+    ------
+    IndefiniteHessian
+        ``H + shift I`` is not positive definite.
+    StepFailure
+        ``Jh`` has (numerically) dependent rows, so ``S`` is singular.
+    """
+
+    __slots__ = ("band", "W", "L", "support", "Js")
+
+    def __init__(self, H: BandedSPD, shift: float, support: np.ndarray, Js: np.ndarray) -> None:
+        try:
+            self.band = banded_cholesky(H.ab, shift, ladder=False, what="Hessian of the Lagrangian").c
+        except NumericalError as err:
+            raise IndefiniteHessian(str(err)) from None
+        top = float(np.max(H.ab[0])) + shift
+        if float(np.min(self.band[0])) ** 2 <= _DEGENERATE * top:  # a rounding-level pivot: singular
+            raise IndefiniteHessian("the Hessian of the Lagrangian is singular (a rounding-level Cholesky pivot)")
+        n, q = H.shape[0], Js.shape[0]
+        touched = Js != 0.0
+        if not np.all(np.any(touched, axis=1)):
+            raise StepFailure("a row of the constraint Jacobian dh/dw is zero here")
+        first = support[np.argmax(touched, axis=1)]  # first non-zero column of each row of Jh
+        W = np.zeros((n, q), order="F")
+        for k, rows in _groups(first, H.bandwidth):  # forward substitution on L[k:, k:]
+            at = support >= k
+            rhs = np.zeros((n - k, rows.shape[0]), order="F")
+            rhs[support[at] - k] = Js[np.ix_(rows, np.flatnonzero(at))].T
+            W[k:, rows] = _substitute(self.band[:, k:], rhs, "N")
+        self.W = W
+        S = np.dot(W.T, W)
+        self.L = _cholesky_or_fail(S, "the Schur complement Jh H^{-1} Jh^T")
+        self.support, self.Js = support, Js
+
+    def solve(self, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(a (n,), lam (q,))`` with ``(H + shift I) a + Jh^T lam = -b`` and ``Jh a = -c``.
+
+        ``v = L^{-1} b``, ``S lam = c - W^T v``, ``a = -L^{-T} (v + W lam)``.
+        """
+        v = _substitute(self.band, b[:, None], "N")[:, 0]
+        lam, _ = dpotrs(self.L, c - np.dot(v, self.W), lower=1)
+        a = _substitute(self.band, (v + np.dot(self.W, lam))[:, None], "T")[:, 0]
+        return -a, lam
+
+
+def _groups(first: np.ndarray, width: int) -> list[tuple[int, np.ndarray]]:
+    """Rows of Jh grouped by where they start: ``[(k, rows), ...]`` with every row of a group
+    starting within ``width`` columns after k (one substitution per group; the few zero rows it
+    adds cost less than a LAPACK call)."""
+    order = np.argsort(first, kind="stable")
+    groups: list[tuple[int, list]] = []
+    for i in order.tolist():
+        if groups and first[i] < groups[-1][0] + max(width, 1):
+            groups[-1][1].append(i)
+        else:
+            groups.append((int(first[i]), [i]))
+    return [(k, np.asarray(rows)) for k, rows in groups]
+
+
+def _substitute(band: np.ndarray, rhs: np.ndarray, trans: str) -> np.ndarray:
+    """``L^{-1} rhs`` (trans "N") or ``L^{-T} rhs`` ("T") for a lower banded L in band storage (LAPACK ``dtbtrs``)."""
+    x, info = dtbtrs(band, rhs, uplo="L", trans=trans)
+    if info != 0:
+        raise IndefiniteHessian(f"the banded Cholesky factor is singular (dtbtrs info = {info})")
+    return x
+
+
+def _cholesky_or_fail(S: np.ndarray, what: str) -> np.ndarray:
+    """Lower Cholesky factor of a small SPD matrix S (q, q); StepFailure when S is (nearly) singular."""
+    L, info = dpotrf(S, lower=1, clean=1)
+    top = float(np.max(np.diagonal(S))) if S.shape[0] else 0.0
+    if info != 0 or not top > 0.0 or float(np.min(np.diagonal(L))) ** 2 <= _DEGENERATE * top:
+        raise StepFailure(f"{what} is singular: the constraint Jacobian dh/dw has dependent rows here")
+    return L
+
+
+def constrained_step(
+    H: BandedSPD,
+    g: np.ndarray,
+    support: np.ndarray,
+    Js: np.ndarray,
+    h: np.ndarray,
+    u: np.ndarray | None = None,
+    radius: float = math.inf,
+    *,
+    nu_definite: float = 0.0,
+    nu_guess: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, float]:
+    """Solve ``min g^T d + d^T H d / 2  s.t.  Jh d = -h,  ||u + d|| <= radius`` (see the module docstring).
+
+    Parameters
+    ----------
+    H : (n, n) banded; g : (n,); support : (s,); Js : (q, s); h : (q,).
+    u : (n,) offset of the current point from the ball's center, or None for no ball.
+    radius : the ball's radius (ignored when ``u`` is None).
+    nu_definite : a shift that makes ``H + nu I`` positive definite (e.g. minus the smallest
+        eigenvalue of the constraint curvature in H), tried when H itself is indefinite: with a
+        ball the step is then its boundary point at a multiplier where ``H + nu I`` is definite
+        (More & Sorensen); when there is none (the hard case) IndefiniteHessian is raised.
+    nu_guess : a first guess of the ball's multiplier (the previous iterate's), tried first.
+
+    Returns
+    -------
+    d : (n,) the step;  lam : (q,) multipliers of ``Jh d = -h``;
+    z : (n,) ``u + d`` on the ball's boundary when the ball is active, else None;
+    nu : the ball's multiplier (0 when inactive).
+
+    Raises
+    ------
+    StepFailure
+        ``H`` is indefinite without a ball, or no boundary point has a definite shift
+        (:class:`IndefiniteHessian`); ``Jh`` is rank-deficient; or the linearized constraints
+        cannot be met inside the ball (:class:`Unreachable`).
+    """
+    if u is None:
+        d, lam = KKTSystem(H, 0.0, support, Js).solve(g, h)
+        return d, lam, None, 0.0
+    # A first definite shift: the guess, else 0 (no ball), else nu_definite; lo: the largest indefinite one.
+    lo, kkt, failed = 0.0, None, False
+    for nu in sorted({nu_guess, 0.0, nu_definite}, key=lambda x: (x != nu_guess, x)):
+        if failed and nu <= lo:  # less definite than a shift that failed
+            continue
+        try:
+            kkt = KKTSystem(H, nu, support, Js)
+            break
+        except IndefiniteHessian:
+            lo, failed = max(lo, nu), True
+    if kkt is None:
+        raise IndefiniteHessian("the Hessian is indefinite and no trial shift makes it definite")
+    d, lam = kkt.solve(g + nu * u, h)
+    z = u + d
+    zz = float(np.dot(z, z))
+    if nu > 0.0 and zz < radius * radius and lo == 0.0 and nu == nu_guess:  # the step is short: try nu = 0
+        try:
+            kkt0 = KKTSystem(H, 0.0, support, Js)
+            kkt, nu = kkt0, 0.0
+            d, lam = kkt.solve(g, h)
+            z = u + d
+            zz = float(np.dot(z, z))
+        except IndefiniteHessian:
+            pass
+    if nu == 0.0 and zz <= radius * radius:
+        return d, lam, None, 0.0
+    zmin_sq = _min_norm_sq(support, Js, h, u, radius)
+    return _boundary_step(H, g, support, Js, h, u, radius, zmin_sq, nu, kkt, z, lam, lo)
+
+
+def _min_norm_sq(support, Js, h, u, radius: float) -> float:
+    """``||z_min||^2 = t^T (Js Js^T)^{-1} t``, t = Jh u - h: the offset of the closest point of the
+    linearized constraints from the center; Unreachable when it does not fit in the ball."""
+    t = np.dot(Js, u[support]) - h
+    G = _cholesky_or_fail(np.dot(Js, Js.T), "the normal matrix Jh Jh^T")
+    zmin_sq = float(np.dot(t, dpotrs(G, t, lower=1)[0]))
+    if zmin_sq >= (1.0 - _REACH_MARGIN) * radius * radius:
+        raise Unreachable(
+            f"the linearized constraints need a step to distance {math.sqrt(zmin_sq):.3g} from the center, "
+            f"beyond the trust region's radius {radius:g}"
+        )
+    return zmin_sq
+
+
+def _boundary_step(H, g, support, Js, h, u, radius, zmin_sq, nu, kkt, z, lam, lo):
+    """More & Sorensen's safeguarded Newton iteration on ``1/||y_null(nu)|| - 1/r_null`` (module
+    docstring) from a definite ``nu`` with its KKT solve ``(kkt, z, lam)``; ``||z(nu)||`` falls as
+    nu grows. ``lo``/``hi`` bracket the root: below lo the step is too long or H + nu I indefinite
+    (``lo`` comes in as the largest indefinite shift met, or 0).
+    From a start where the step is too long the iterates rise monotonically and stay definite;
+    from one where it is too short, a Newton step may cross into the indefinite shifts, which are
+    bisected away at most ``_MAX_INDEFINITE`` times before giving up (IndefiniteHessian)."""
+    r_null = math.sqrt(radius * radius - zmin_sq)
+    zero = np.zeros(h.shape[0])
+    hi, indefinite = math.inf, 0
+    zz = float(np.dot(z, z))
+    for _ in range(_SECULAR_MAX_ITER):
+        zn = math.sqrt(zz)
+        if abs(zn - radius) <= _SECULAR_TOL * radius:
+            break
+        if zn > radius:
+            lo = nu
+        else:
+            hi = nu
+        # Newton step; d||y_null||^2/dnu = 2 z^T dz/dnu, with dz/dnu from one more KKT solve.
+        yn = math.sqrt(max(zz - zmin_sq, 1e-300))
+        dz, _ = kkt.solve(z, zero)
+        zq = -float(np.dot(z, dz))  # y_null^T (Z^T H Z + nu I)^{-1} y_null > 0
+        nu = nu + (yn * yn / zq) * (yn - r_null) / r_null if zq > 0.0 else math.nan
+        while True:  # keep nu inside the bracket and H + nu I definite
+            if not (lo < nu < hi):
+                if not math.isfinite(hi):
+                    raise IndefiniteHessian("the trust-region multiplier has no Newton step")
+                nu = 0.5 * (lo + hi)
+            try:
+                kkt = KKTSystem(H, nu, support, Js)
+                break
+            except IndefiniteHessian:
+                lo, indefinite = nu, indefinite + 1
+                if indefinite > _MAX_INDEFINITE:
+                    raise IndefiniteHessian(
+                        "the trust-region step needs a shift at which the Hessian is indefinite (hard case)"
+                    ) from None
+        d, lam = kkt.solve(g + nu * u, h)
+        z = u + d
+        zz = float(np.dot(z, z))
+    zn = math.sqrt(zz)
+    if zn < radius * (1.0 - 1e-9):  # budget ran out on the short side
+        raise IndefiniteHessian("the trust-region multiplier did not converge from above")
+    if zn > radius:  # rounding, or the iteration budget ran out: onto the boundary
+        z = z * (radius / zn)
+    return z - u, lam, z, nu

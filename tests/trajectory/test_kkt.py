@@ -1,0 +1,144 @@
+"""Tests of the banded KKT steps of the SQP solver (corl.trajectory.kkt) against dense linear algebra."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from scipy.linalg import null_space
+
+from corl.trajectory.banded import BandedSPD
+from corl.trajectory.kkt import (
+    IndefiniteHessian,
+    KKTSystem,
+    StepFailure,
+    Unreachable,
+    constrained_step,
+)
+
+N = 40
+
+
+def banded_hessian(seed: int, shift: float = 0.0) -> tuple[BandedSPD, np.ndarray]:
+    """A second-difference cost's Hessian (bandwidth 2, singular: linear motions cost nothing) + shift I."""
+    D = sp.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(N - 2, N)).toarray()
+    rng = np.random.default_rng(seed)
+    H = 2.0 * D.T @ np.diag(rng.uniform(0.5, 2.0, N - 2)) @ D + shift * np.eye(N)
+    return BandedSPD.from_sparse(sp.csr_matrix(H)), H
+
+
+def constraint_rows(seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Start, end and one interior row (they pin the linear motions): (support, Js, dense Jh (3, N))."""
+    rng = np.random.default_rng(seed)
+    support = np.array([0, 1, 17, 18, 19, 38, 39])
+    Js = np.zeros((3, support.shape[0]))
+    Js[0, :2] = rng.normal(size=2)
+    Js[1, 2:5] = rng.normal(size=3)
+    Js[2, 5:] = rng.normal(size=2)
+    Jh = np.zeros((3, N))
+    Jh[:, support] = Js
+    return support, Js, Jh
+
+
+def dense_kkt(H, Jh, g, h, nu=0.0, u=None):
+    """Solve [[H + nu I, Jh^T], [Jh, 0]] [d; lam] = [-(g + nu u); -h] densely."""
+    q = Jh.shape[0]
+    K = np.block([[H + nu * np.eye(N), Jh.T], [Jh, np.zeros((q, q))]])
+    rhs = np.concatenate([-(g + (nu * u if u is not None else 0.0)), -h])
+    sol = np.linalg.solve(K, rhs)
+    return sol[:N], sol[N:]
+
+
+def test_kkt_system_solves_the_dense_kkt_equations():
+    Hb, H = banded_hessian(0)
+    support, Js, Jh = constraint_rows(1)
+    rng = np.random.default_rng(2)
+    b, c = rng.normal(size=N), rng.normal(size=3)
+    # H alone is singular (linear motions), H + Jh^T Jh is not: the KKT matrix is regular.
+    Hb_aug = (1.0 * BandedSPD.from_sparse(sp.csr_matrix(Jh.T @ Jh))) + Hb
+    a, lam = KKTSystem(Hb_aug, 0.3, support, Js).solve(b, c)
+    d_ref, lam_ref = dense_kkt(H + Jh.T @ Jh, Jh, b, c, nu=0.3, u=np.zeros(N))
+    np.testing.assert_allclose(a, d_ref, rtol=1e-9, atol=1e-10)
+    np.testing.assert_allclose(lam, lam_ref, rtol=1e-9, atol=1e-10)
+
+
+def test_step_without_ball_is_the_equality_constrained_newton_step():
+    Hb, H = banded_hessian(3, shift=0.1)
+    support, Js, Jh = constraint_rows(4)
+    rng = np.random.default_rng(5)
+    g, h = rng.normal(size=N), 0.1 * rng.normal(size=3)
+    d, lam, z, nu = constrained_step(Hb, g, support, Js, h)
+    d_ref, lam_ref = dense_kkt(H, Jh, g, h)
+    assert z is None and nu == 0.0
+    np.testing.assert_allclose(d, d_ref, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(lam, lam_ref, rtol=1e-9, atol=1e-12)
+
+
+def _assert_ball_step_is_optimal(H, Jh, g, h, u, radius, d, lam, z, nu):
+    """KKT of min g^T d + d^T H d / 2 s.t. Jh d = -h, ||u + d|| <= radius, with the ball active, and the
+    second-order condition Z^T (H + nu I) Z > 0 that makes it the global minimizer (More & Sorensen)."""
+    assert z is not None and nu > 0.0
+    np.testing.assert_allclose(z, u + d, atol=1e-14)
+    assert np.linalg.norm(z) == pytest.approx(radius, rel=1e-10)
+    np.testing.assert_allclose(Jh @ d, -h, atol=1e-10)
+    residual = (H + nu * np.eye(N)) @ d + Jh.T @ lam + g + nu * u
+    np.testing.assert_allclose(residual, 0.0, atol=1e-8 * (1 + np.abs(g).max()))
+    Z = null_space(Jh)
+    assert np.linalg.eigvalsh(Z.T @ (H + nu * np.eye(N)) @ Z)[0] > 0.0
+
+
+def test_ball_step_solves_the_trust_region_subproblem():
+    Hb, H = banded_hessian(6, shift=0.05)
+    support, Js, Jh = constraint_rows(7)
+    rng = np.random.default_rng(8)
+    g, h = 10.0 * rng.normal(size=N), 0.01 * rng.normal(size=3)
+    u = rng.normal(size=N)
+    radius = 1.5 * np.linalg.norm(u)
+    d, lam, z, nu = constrained_step(Hb, g, support, Js, h, u, radius)
+    _assert_ball_step_is_optimal(H, Jh, g, h, u, radius, d, lam, z, nu)
+    # A warm start from a nearby multiplier gives the same step.
+    d2, lam2, _, nu2 = constrained_step(Hb, g, support, Js, h, u, radius, nu_guess=3.0 * nu)
+    assert nu2 == pytest.approx(nu, rel=1e-8)
+    np.testing.assert_allclose(d2, d, atol=1e-10)
+
+
+def test_ball_step_with_an_indefinite_hessian_uses_a_definite_shift():
+    Hb, H = banded_hessian(9, shift=0.0)
+    support, Js, Jh = constraint_rows(10)
+    # Negative curvature on a block (as the constraint curvature lam^T d2h adds to the Hessian).
+    C = np.zeros((N, N))
+    C[20:24, 20:24] = -3.0 * np.eye(4)
+    H = H + C
+    Hb = BandedSPD.from_sparse(sp.csr_matrix(H), 2)
+    assert np.linalg.eigvalsh(H)[0] < 0
+    rng = np.random.default_rng(11)
+    g, h, u = rng.normal(size=N), np.zeros(3), np.zeros(N)
+    with pytest.raises(IndefiniteHessian):
+        constrained_step(Hb, g, support, Js, h)  # no ball: no step
+    d, lam, z, nu = constrained_step(Hb, g, support, Js, h, u, 0.5, nu_definite=3.0 + 1e-6)
+    _assert_ball_step_is_optimal(H, Jh, g, h, u, 0.5, d, lam, z, nu)
+    assert np.linalg.eigvalsh(H + nu * np.eye(N))[0] > 0.0
+
+
+def test_linearized_constraints_out_of_the_ball_raise_unreachable():
+    Hb, _ = banded_hessian(12, shift=0.1)
+    support, Js, _ = constraint_rows(13)
+    h = np.array([5.0, -5.0, 5.0])
+    rng = np.random.default_rng(14)
+    with pytest.raises(Unreachable, match="radius"):
+        constrained_step(Hb, rng.normal(size=N), support, Js, h, np.zeros(N), 0.01)
+
+
+def test_dependent_constraint_rows_raise_step_failure():
+    Hb, _ = banded_hessian(15, shift=0.1)
+    support, Js, _ = constraint_rows(16)
+    Js = np.vstack([Js, Js[1]])  # a duplicated row: the Schur complement is singular
+    with pytest.raises(StepFailure, match="dependent rows"):
+        constrained_step(Hb, np.ones(N), support, Js, np.zeros(4))
+
+
+def test_singular_hessian_is_refused():
+    Hb, _ = banded_hessian(17)  # linear motions cost nothing and no constraint pins them
+    support = np.array([20])
+    with pytest.raises(IndefiniteHessian):
+        KKTSystem(Hb, 0.0, support, np.ones((1, 1)))
