@@ -1,0 +1,316 @@
+"""``corl report``: one self-contained HTML page per stored run.
+
+A page needs no file beside it and no network: figures are base64 PNG ``data:`` URIs, the video a
+base64 MP4 ``data:`` URI, the style sheet is inline. It holds the run's configuration, the library
+versions recorded with it, learning curves (J and the return over trials), the return map with the
+GP classifier's boundary (Fig. 2c), the table of trials and, for tasks that render, a video of the
+demonstration beside the learned motion.
+
+The learner is rebuilt by replaying the stored trials (:meth:`corl.session.StoredRun.open`) into a
+fresh learner on the task named by the run's stored ``task_spec``. When that is impossible (the
+task's module is not importable here, the software changed so the replay diverges), the page is
+still written from the stored trials alone, and says what is missing and why.
+
+Glossary
+--------
+d       : number of stored trials of a run
+J       : analytic cost of a trial's w (Eq. 7), from the replayed learner or ``task.cost_residuals``
+R       : the measured return of a trial (None for failures and the pending trial)
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from corl.errors import CorlError, InputError
+from corl.store import RunInfo, RunStore, StoreError, TrialRecord
+
+__all__ = ["RunReport", "collect_report", "write_reports", "plot_trials", "data_uri", "VIDEO_NAMES"]
+
+VIDEO_NAMES = ("demo_vs_learned.mp4", "demo_vs_learned.gif")  # what `corl run` writes beside its store
+_MIME = {".png": "image/png", ".mp4": "video/mp4", ".gif": "image/gif"}
+
+
+@dataclass
+class RunReport:
+    """Everything one page shows; figures and the video are already encoded as ``data:`` URIs.
+
+    ``J``: (d,) analytic cost of every trial (NaN when the task could not be loaded);
+    ``figures``: further figures as (heading, caption, data URI); ``notes``: what could not be shown and why.
+    """
+
+    info: RunInfo
+    store_path: Path
+    records: list[TrialRecord]
+    J: np.ndarray
+    best_index: int | None  # the successful trial with the highest return
+    learned_index: int | None = None  # the trial of the learner's result (w*, theta*), when replayed
+    theta_labels: tuple[str, ...] = ()
+    curves: tuple[str, str] | None = None  # (caption, data URI) of J and R over trials
+    figures: list[tuple[str, str, str]] = field(default_factory=list)
+    return_map: tuple[str, str] | None = None  # (caption, data URI)
+    video: tuple[str, str, str] | None = None  # (mime, data URI, where it came from)
+    notes: list[str] = field(default_factory=list)
+    replayed: bool = False
+
+
+def data_uri(path: str | Path) -> str:
+    """``data:<mime>;base64,...`` of a PNG, MP4 or GIF file."""
+    path = Path(path)
+    mime = _MIME.get(path.suffix.lower())
+    if mime is None:
+        raise InputError(f"cannot embed {path.name}: only {', '.join(_MIME)} files are embedded")
+    return f"data:{mime};base64," + base64.b64encode(path.read_bytes()).decode("ascii")
+
+
+# -- rebuilding the run ------------------------------------------------------------------------
+def _load_and_replay(db: RunStore, info: RunInfo, notes: list[str], log: Callable[[str], None]):
+    """(task, learner) of the run, either None with a note saying why."""
+    from corl.session import StoredRun
+    from corl.tasks.registry import load_task
+
+    spec = info.config.get("task_spec") or info.task
+    try:
+        task = load_task(spec, seed=int(info.seed or 0))
+    except (CorlError, ImportError) as exc:
+        notes.append(f"The task '{spec}' could not be loaded here ({exc}), so J, the return map and a "
+                     "rendered video are missing; run 'corl report' where the task's module is importable.")
+        return None, None
+    if info.n_trials:
+        log(f"run {info.id}: replaying {info.n_trials} trials of {info.method} on {info.task}")
+    try:
+        learner = StoredRun.open(db, task, info.id).learner
+    except CorlError as exc:
+        notes.append(f"The learner could not be rebuilt by replaying the run ({exc}); the return map "
+                     "is missing, the trials and J below come from the store and the task.")
+        return task, None
+    return task, learner
+
+
+def _costs(task, learner, records: list[TrialRecord]) -> np.ndarray:
+    """J (d,) of every trial: the learner's record where it has one, else ``J(w)`` from the task."""
+    from corl.learner import cost_of
+
+    known = dict(getattr(learner, "J_history", ()) or ())
+    J = np.full(len(records), np.nan)
+    for i, record in enumerate(records):
+        if record.index in known:
+            J[i] = known[record.index]
+        elif task is not None:
+            J[i] = cost_of(task, record.proposal.w)
+    return J
+
+
+def _learned_index(learner, records: list[TrialRecord]) -> int | None:
+    """Position of the last successful trial whose w is the learner's result ``best.w``, or None."""
+    best = getattr(learner, "best", None)
+    if best is None:
+        return None
+    hits = [i for i, r in enumerate(records) if r.outcome is not None and r.outcome.success
+            and r.proposal.w.shape == np.shape(best.w) and np.array_equal(r.proposal.w, best.w)]
+    return hits[-1] if hits else None
+
+
+def _best_index(records: list[TrialRecord]) -> int | None:
+    """Position of the successful trial with the highest return (the first on ties), or None."""
+    ok = [(r.outcome.return_, -i) for i, r in enumerate(records)
+          if r.outcome is not None and r.outcome.success and r.outcome.return_ is not None]
+    return -max(ok)[1] if ok else None
+
+
+# -- figures ------------------------------------------------------------------------------------
+def plot_trials(report: RunReport, path: Path) -> Path:
+    """J (top, log scale) and the return R (bottom) of every told trial, in the order they ran.
+
+    Failures have no return: they are red crosses along the bottom of the lower panel. The black
+    step line is the best return so far; dotted vertical lines separate Algorithm 1's rounds.
+    """
+    from corl.experiments.figures import _pyplot, _save
+
+    plt = _pyplot()
+    told = [(i, r) for i, r in enumerate(report.records) if r.outcome is not None]
+    x = np.array([r.index for _, r in told], dtype=float)
+    ok = np.array([r.outcome.success for _, r in told], dtype=bool)
+    R = np.array([np.nan if r.outcome.return_ is None else r.outcome.return_ for _, r in told], dtype=float)
+    J = np.array([report.J[i] for i, _ in told], dtype=float)
+    rounds = np.array([r.proposal.round for _, r in told])
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(10, 5.6), sharex=True)
+    finite = np.isfinite(J)
+    if finite.any():
+        Jp = np.maximum(J, 1e-12)  # J can reach exactly 0; keep the log axis readable
+        top.scatter(x[finite & ok], Jp[finite & ok], s=9, c="tab:blue", label="success")
+        top.scatter(x[finite & ~ok], Jp[finite & ~ok], s=22, c="tab:red", marker="x", label="failure")
+        top.set_yscale("log")
+        top.legend(loc="upper right", fontsize=8)
+    else:
+        top.text(0.5, 0.5, "J unavailable (task not loaded)", ha="center", va="center", transform=top.transAxes)
+    top.set_ylabel("J(w)")
+    top.set_title("J and return over trials")
+    good = ok & np.isfinite(R)
+    bottom.scatter(x[good], R[good], s=9, c="tab:blue", label="return of a success")
+    if good.any():
+        best_so_far = np.fmax.accumulate(np.where(good, R, -np.inf))
+        shown = np.isfinite(best_so_far)
+        bottom.step(x[shown], best_so_far[shown], where="post", color="k", lw=1.2, label="best so far")
+    if (~ok).any():
+        bottom.scatter(x[~ok], np.full((~ok).sum(), 0.04), transform=bottom.get_xaxis_transform(), s=30,
+                       c="tab:red", marker="x", label=f"failure ({(~ok).sum()}, no return)")
+    for change in x[1:][np.diff(rounds) != 0] if len(x) else ():
+        for ax in (top, bottom):
+            ax.axvline(change - 0.5, color="0.6", ls=":", lw=1)
+    bottom.set_xlabel("trial")
+    bottom.set_ylabel("return R")
+    bottom.legend(loc="upper left", fontsize=8)  # returns tend to rise: the early top is free
+    return _save(plt, fig, path)
+
+
+def _figures(report: RunReport, task, learner, folder: Path) -> None:
+    """Learning curves and the return map, as data URIs in ``report``."""
+    from corl.experiments.figures import plot_learning_curve, plot_return_map
+
+    if any(r.outcome is not None for r in report.records):
+        report.curves = ("J(w) of every trial (top; values below 1e-12 are drawn at 1e-12) and its return "
+                         "(bottom); failures in red, dotted lines separate the rounds of Algorithm 1.",
+                         data_uri(plot_trials(report, folder / "trials.png")))
+    if learner is None:
+        return
+    if getattr(learner, "J_history", None) and getattr(learner, "optimizers", None) is not None:
+        report.figures.append(("Motion optimization (Fig. 2b)", "J(w) of the rollouts of the optimization "
+                               "steps; the red dashed lines mark step 2 (RL over theta).",
+                               data_uri(plot_learning_curve(learner, folder / "learning_curve.png"))))
+    if not getattr(learner, "optimizers", None):
+        report.notes.append("No return map: this run has no black-box step over theta "
+                            "(a method over w, or Algorithm 1 stopped before step 2).")
+        return
+    if task.theta_bounds.dim > 2:
+        report.notes.append(f"No return map: theta has {task.theta_bounds.dim} dimensions, a map shows 1 or 2.")
+        return
+    try:
+        path = plot_return_map(learner, folder / "return_map.png", labels=report.theta_labels)
+    except (ValueError, CorlError) as exc:
+        report.notes.append(f"No return map: {exc}.")
+        return
+    report.return_map = ("GP mean of R over theta from the last round's black-box data; red line: the "
+                         "success classifier's boundary p = 0.5; star: the best theta.", data_uri(path))
+
+
+def _existing_video(store_path: Path, run_id: int, n_runs: int) -> Path | None:
+    """The video `corl run` wrote beside the store for this run, if any.
+
+    ``summary.json`` beside the store names the run its video shows; without it, a video is taken
+    to be this run's only when the store holds a single run.
+    """
+    folder = store_path.parent
+    summary = folder / "summary.json"
+    if summary.is_file():
+        try:
+            payload = json.loads(summary.read_text())
+        except (OSError, ValueError):
+            payload = {}
+        video = (payload.get("files") or {}).get("video")
+        if payload.get("run_id") == run_id and video:
+            path = folder / Path(video).name  # `corl run` writes it beside summary.json
+            return path if path.is_file() else None
+        if payload.get("run_id") is not None:
+            return None
+    if n_runs == 1:
+        return next((folder / name for name in VIDEO_NAMES if (folder / name).is_file()), None)
+    return None
+
+
+def _video(report: RunReport, task, learner, folder: Path, n_runs: int) -> None:
+    """Embed the run's video: the one beside the store, else a fresh rendering."""
+    render = getattr(task, "render_comparison", None)
+    existing = _existing_video(report.store_path, report.info.id, n_runs)
+    if existing is not None:
+        report.video = (_MIME[existing.suffix.lower()], data_uri(existing), f"{existing.name} beside the store")
+        return
+    if render is None or not report.records:
+        return
+    best = getattr(learner, "best", None)
+    if best is not None:
+        w_best = best.w
+    elif report.best_index is not None:
+        w_best = report.records[report.best_index].proposal.w
+    else:
+        report.notes.append("No video: the run has no successful trial to show.")
+        return
+    try:
+        path = Path(render(report.records[0].proposal.w, w_best, folder / "demo_vs_learned.mp4"))
+    except Exception as exc:  # no OpenGL on this machine: the rest of the page stands without it
+        report.notes.append(f"No video ({type(exc).__name__}: {exc}). Offscreen rendering needs EGL or "
+                            "OSMesa (Debian: libegl1 libgl1); set MUJOCO_GL=egl or osmesa, or pass --no-video.")
+        return
+    report.video = (_MIME[path.suffix.lower()], data_uri(path), "rendered for this report")
+
+
+def collect_report(db: RunStore, info: RunInfo, *, video: bool = True, n_runs: int = 1,
+                   log: Callable[[str], None] = lambda message: None) -> RunReport:
+    """Everything the page of run ``info`` shows: trials, J, figures, video and notes."""
+    records = db.trials(info.id)
+    notes: list[str] = []
+    task, learner = _load_and_replay(db, info, notes, log)
+    labels = tuple(getattr(task, "theta_labels", ()) or ())
+    dim = records[0].proposal.theta.shape[0] if records else 0
+    if len(labels) != dim:
+        labels = tuple(f"theta {k + 1}" for k in range(dim))
+    report = RunReport(info=info, store_path=Path(db.path), records=records, J=_costs(task, learner, records),
+                       best_index=_best_index(records), learned_index=_learned_index(learner, records),
+                       theta_labels=labels, notes=notes,
+                       replayed=learner is not None)
+    with tempfile.TemporaryDirectory(prefix="corl-report-") as tmp:
+        _figures(report, task, learner, Path(tmp))
+        if video:
+            _video(report, task, learner, Path(tmp), n_runs)
+    return report
+
+
+def write_reports(store: str | Path, out: str | Path, *, run_id: int | None = None, video: bool = True,
+                  log: Callable[[str], None] = lambda message: None) -> list[Path]:
+    """Write ``OUT/run_<id>.html`` for every run of the store (or only ``run_id``).
+
+    With more than one page, ``OUT/index.html`` lists them. Returns the paths written, index last.
+    Raises :class:`StoreError` for a missing or damaged store, an unknown run or an empty store.
+    """
+    from corl.experiments.html_page import render_index, render_page
+
+    store, out = Path(store), Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out} is a file; give a folder for the report pages")
+    with RunStore(store, readonly=True, create=False) as db:
+        every_run = db.runs()
+        infos = every_run if run_id is None else [db.run(run_id)]
+        if not infos:
+            raise StoreError(f"{store} holds no run yet, so there is nothing to report; "
+                             "start one with 'corl run' or 'corl ask'")
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise InputError(f"cannot create the report folder {out}: {exc.strerror}; choose another --out") from None
+        written = []
+        for info in infos:
+            report = collect_report(db, info, video=video, n_runs=len(every_run), log=log)
+            written.append(_write_text(out / f"run_{info.id}.html", render_page(report)))
+            log(f"run {info.id}: wrote {written[-1]}")
+    if len(written) > 1:
+        written.append(_write_text(out / "index.html", render_index(infos, store)))
+    return written
+
+
+def _write_text(path: Path, text: str) -> Path:
+    """Write ``text`` to ``path`` through a temporary file, so a page is never half written."""
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        tmp.replace(path)
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {exc.strerror}; check that --out is writable") from None
+    return path
+
