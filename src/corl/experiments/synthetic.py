@@ -64,18 +64,24 @@ def run_one(method: str, start_index: int, w0: np.ndarray, seed: int,
 
 
 def sweep(methods, n_starts: int, seed: int, *, jobs: int = 1, backend: str = "loky",
-          settings: MethodSettings = MethodSettings(), progress=None) -> list[RunMetrics]:
-    """Every method from the same ``n_starts`` starts, in parallel through joblib."""
-    from joblib import Parallel, delayed
+          address: str | None = None, settings: MethodSettings = MethodSettings(),
+          progress=None) -> list[RunMetrics]:
+    """Every method from the same ``n_starts`` starts, in parallel.
+
+    ``backend`` and ``address`` say where the runs go (:mod:`corl.experiments.backends`: local
+    processes, a Ray or a Dask cluster); ``progress(run)`` is called as runs finish. The result is
+    sorted by (method, start), the same list whatever the backend.
+    """
+    from corl.experiments.backends import cluster, run_unordered
 
     W0 = starts(n_starts, seed)
-    tasks = [(m, i) for m in methods for i in range(n_starts)]
-    parallel = Parallel(n_jobs=jobs, backend=backend, return_as="generator_unordered", batch_size=4)
+    tasks = [(m, i, W0[i], seed, settings) for m in methods for i in range(n_starts)]
     results = []
-    for r in parallel(delayed(run_one)(m, i, W0[i], seed, settings) for m, i in tasks):
-        results.append(r)
-        if progress is not None:
-            progress(r)
+    with cluster(backend, jobs, address):
+        for _, r in run_unordered(run_one, tasks, jobs=jobs, backend=backend, batch_size=4):
+            results.append(r)
+            if progress is not None:
+                progress(r)
     order = {m: k for k, m in enumerate(methods)}
     return sorted(results, key=lambda r: (order[r.method], r.start))
 
