@@ -1,0 +1,24 @@
+"""corl: Combined Optimization and Reinforcement Learning (Englert & Toussaint, RSS 2016).
+
+A manipulation skill is learned from one demonstration: motion optimization improves the
+analytic cost ``J(w)`` of a trajectory (:mod:`corl.trajectory`), and a safe black-box
+optimizer (:mod:`corl.optimizers`) improves the unknown return ``R(theta)`` of the few task
+parameters ``theta`` while avoiding failures ``S(theta) = 0``. :class:`corl.learner.CORL`
+(Algorithm 1) alternates the two and speaks ``ask`` / ``tell`` like every baseline.
+
+The packages, from the lowest layer up:
+
+* :mod:`corl.errors`, :mod:`corl.numerics`, :mod:`corl.problem`: exceptions, safe numerics, the
+  problem of Eq. 2-5 and the records a learning loop exchanges;
+* :mod:`corl.trajectory`: B-splines, k-order Markov features, the Gauss-Newton solver (Eq. 8)
+  and the projection of Eq. 18;
+* :mod:`corl.gp`, :mod:`corl.acquisition`, :mod:`corl.optimizers`, :mod:`corl.policies`:
+  Gaussian processes, PI / UCB / PIBU, the black-box methods, DMPs;
+* :mod:`corl.learner`, :mod:`corl.direct`, :mod:`corl.loop`: CORL and the methods over ``w``;
+* :mod:`corl.tasks`: the synthetic benchmark and the simulated PR2 door;
+* :mod:`corl.store`, :mod:`corl.session`: the run store and resumable runs;
+* :mod:`corl.experiments`, :mod:`corl.progress`, :mod:`corl.cli`: benchmarks, reports and the
+  ``corl`` command.
+
+``docs/index.md`` in the repository says how to build this reference (``make docs``).
+"""

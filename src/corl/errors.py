@@ -29,3 +29,7 @@ class RolloutError(CorlError):
 
 class StateError(CorlError, RuntimeError):
     """A call that does not fit the learner's or optimizer's state (tell without ask, ...)."""
+
+
+class MissingExtraError(CorlError, ImportError):
+    """An optional package corl needs for this feature is not installed (``pip install 'corl[extra]'``)."""
