@@ -9,18 +9,21 @@ export OPENBLAS_NUM_THREADS ?= 1
 export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
-.PHONY: demo test test-fast bench synthetic clean
+.PHONY: demo test test-fast bench synthetic docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[test]"
+	$(PY) -m pip install --quiet -e ".[test,ray,dask]"
 	touch $(STAMP)
 
 demo: $(STAMP)
 	MUJOCO_GL=egl $(VENV)/bin/corl run door --seed 0 --out results/door
 
+# `make test` installs headless Chromium for the browser test of `corl report` (when root with apt-get).
 test: $(STAMP)
+	@command -v chromium >/dev/null || [ "$$(id -u)" != 0 ] || ! command -v apt-get >/dev/null || \
+		(apt-get update -qq && apt-get install -y -qq chromium >/dev/null) || echo "could not install chromium"
 	$(PY) -m pytest -q
 
 test-fast: $(STAMP)
@@ -32,5 +35,15 @@ synthetic: $(STAMP)
 bench: $(STAMP)
 	$(PY) benchmarks/pibu_speed.py
 
+# API reference from the docstrings: one HTML page per module in docs/api (see docs/index.md).
+DOCS_STAMP := $(VENV)/.docs-installed
+$(DOCS_STAMP): $(STAMP) pyproject.toml
+	$(PY) -m pip install --quiet -e ".[docs]"
+	touch $(DOCS_STAMP)
+
+docs: $(DOCS_STAMP)
+	rm -rf docs/api
+	$(PY) docs/build_api.py docs/api
+
 clean:
-	rm -rf $(VENV) results build *.egg-info src/*.egg-info
+	rm -rf $(VENV) results build docs/api *.egg-info src/*.egg-info

@@ -40,6 +40,29 @@ def _write_json(path: Path, payload: dict) -> None:
     tmp.replace(path)
 
 
+# Output options of the long commands (corl.progress): progress on stderr, the result on stdout.
+QUIET = typer.Option(False, "--quiet", "-q", help="nothing on stderr but errors")
+JSON_OUT = typer.Option(False, "--json", help="stdout: one JSON document and nothing else")
+LOG = typer.Option(False, "--log", help="plain progress lines, not the live display (default if stderr is no terminal)")
+
+
+def _tracker(title: str, *, quiet: bool, log: bool, json_out: bool):
+    """The command's :class:`corl.progress.Tracker`; with ``--json`` stray prints go to stderr."""
+    from corl.progress import Tracker, choose_mode
+
+    return Tracker(choose_mode(quiet=quiet, log=log), title, protect_stdout=json_out)
+
+
+def _print_json(payload: dict) -> None:
+    typer.echo(json.dumps(payload, indent=2))
+
+
+# Where the runs of a benchmark go (corl.experiments.backends).
+BACKEND = typer.Option("loky", help="where runs execute: loky (local processes), ray or dask (a cluster)")
+ADDRESS = typer.Option(None, help="a running Ray (auto, HOST:PORT) or Dask (tcp://HOST:8786) cluster to use; "
+                                  "default: start a local one with --jobs workers")
+
+
 @bench_app.command("synthetic")
 def bench_synthetic(
     starts: int = typer.Option(100, help="random feasible starts per method"),
@@ -47,37 +70,35 @@ def bench_synthetic(
     out: Path = typer.Option(Path("results/synthetic"), help="output folder for synthetic.json"),
     methods: Optional[str] = typer.Option(None, help="comma-separated method names (default: the 8 of Fig. 1)"),
     jobs: int = typer.Option(-1, help="parallel workers (-1: all cores)"),
-    backend: str = typer.Option("loky", help="joblib backend"),
-    quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
+    backend: str = BACKEND, address: Optional[str] = ADDRESS,
+    quiet: bool = QUIET, json_out: bool = JSON_OUT, log: bool = LOG,
 ) -> None:
     """Reproduce Fig. 1: every method from the same random feasible starts."""
+    import math
     import time
-
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from corl.errors import CorlError
     from corl.experiments.methods import METHODS, PAPER_FIG1
     from corl.experiments.report import synthetic_table
     from corl.experiments.synthetic import FOUND_TOLERANCE, aggregate, sweep
+    from corl.tasks.synthetic import return_of
     from corl.versions import library_versions
 
     names = _method_list(methods, default=list(PAPER_FIG1), allowed=METHODS)
     if starts < 1:
         _fail("--starts must be at least 1")
-    console = Console(stderr=True)
     t0 = time.perf_counter()
-    with Progress(TextColumn("[bold]synthetic"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                  TextColumn("{task.description}"), console=console, disable=quiet) as bar:
-        job = bar.add_task("", total=starts * len(names))
-        failures = {m: 0 for m in names}
+    with _tracker("bench synthetic", quiet=quiet, log=log, json_out=json_out) as tracker:
+        for name in names:
+            tracker.add_stage(name, total=starts)
 
-        def tick(r):
-            failures[r.method] += r.failures
-            bar.update(job, advance=1, description=f"{r.method}: {failures[r.method]} failures so far")
+        def tick(r):  # one row per method: starts done, failures, best R = R(theta(w_best))
+            ret = None if r.best_w is None else return_of(math.atan2(r.best_w[1], r.best_w[0]))
+            tracker.update(r.method, advance=1, total=starts, failures=r.failures, ret=ret,
+                           note=f"start {r.start}: {'found' if r.found else 'not found'}, {r.failures} failures")
 
         try:
-            results = sweep(names, starts, seed, jobs=jobs, backend=backend, progress=tick)
+            results = sweep(names, starts, seed, jobs=jobs, backend=backend, address=address, progress=tick)
         except CorlError as exc:
             _fail(str(exc))
     wall = time.perf_counter() - t0
@@ -85,6 +106,8 @@ def bench_synthetic(
     payload = {"methods": table, "found_tolerance": FOUND_TOLERANCE, "seed": seed, "starts": starts,
                "wall_seconds": wall, "versions": library_versions()}
     _write_json(out / "synthetic.json", payload)
+    if json_out:
+        return _print_json({**payload, "file": str(out / "synthetic.json")})
     typer.echo(synthetic_table(table, FOUND_TOLERANCE))
     typer.echo(f"\n{len(names)} methods x {starts} starts in {wall:.1f} s; wrote {out / 'synthetic.json'}")
 
@@ -97,15 +120,14 @@ def bench_door(
     out: Path = typer.Option(Path("results/door"), help="output folder for door.json and the safe-region cache"),
     methods: Optional[str] = typer.Option(None, help="comma-separated: CORL+PIBU,CORL+CMA,DMP+PoWER (default all)"),
     grid: str = typer.Option("25x15", help="safe-region grid over theta, N1xN2"),
+    force_noise: float = typer.Option(0.0, help="std (N) of a seeded error of the force sensor behind R; "
+                                                "0: exact simulator, every seed of a deterministic method alike"),
     jobs: int = typer.Option(2, help="parallel workers (-1: all cores)"),
-    backend: str = typer.Option("loky", help="joblib backend"),
-    quiet: bool = typer.Option(False, "--quiet", help="no progress bar"),
+    backend: str = BACKEND, address: Optional[str] = ADDRESS,
+    quiet: bool = QUIET, json_out: bool = JSON_OUT, log: bool = LOG,
 ) -> None:
     """Reproduce Fig. 3: the door task's highest return, failure rate and distance to the safe region."""
     import time
-
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from corl.errors import CorlError
     from corl.experiments.door_bench import DOOR_METHODS, door_sweep
@@ -116,24 +138,26 @@ def bench_door(
     names = _method_list(methods, default=list(DOOR_METHODS), allowed=DOOR_METHODS)
     if min(seeds, iterations, dmp_iterations) < 1:
         _fail("--seeds, --iterations and --dmp-iterations must be at least 1")
+    if not force_noise >= 0.0:
+        _fail(f"--force-noise is a standard deviation in N and must be >= 0, got {force_noise}")
     try:
         n1, n2 = (int(v) for v in grid.lower().split("x"))
     except ValueError:
         _fail(f"--grid must look like 25x15, got {grid!r}")
-    console = Console(stderr=True)
     t0 = time.perf_counter()
-    with Progress(TextColumn("[bold]door {task.fields[stage]}"), BarColumn(), MofNCompleteColumn(),
-                  TimeElapsedColumn(), TextColumn("{task.description}"), console=console, disable=quiet) as bar:
-        stages: dict[str, int] = {}
+    with _tracker("bench door", quiet=quiet, log=log, json_out=json_out) as tracker:
+        for name in names:
+            tracker.add_stage(name, total=seeds)
 
-        def tick(stage, done, total, note):
-            if stage not in stages:
-                stages[stage] = bar.add_task("", total=total, stage=stage)
-            bar.update(stages[stage], completed=done, total=total, description=note)
+        def tick(stage, done, total, note, run=None):  # one row per method, then one per safe region
+            if run is None:
+                return tracker.update(stage, done=done, total=total, note=note)
+            tracker.update(run.method, advance=1, total=seeds, failures=run.failures, ret=run.highest_return,
+                           note=f"seed {run.seed}: {run.failures}/{run.trials} failed")
 
         try:
             result = door_sweep(names, seeds, iterations, out=out, dmp_iterations=dmp_iterations, grid=(n1, n2),
-                                jobs=jobs, backend=backend, progress=tick)
+                                jobs=jobs, backend=backend, address=address, progress=tick, force_noise=force_noise)
         except CorlError as exc:
             _fail(str(exc))
     wall = time.perf_counter() - t0
@@ -141,8 +165,10 @@ def bench_door(
                        "unrealised": int((~r.realised).sum()), "spacing": r.spacing.tolist()}
                for r in result.regions.values()}
     payload = {"methods": result.table, "seeds": seeds, "iterations": iterations, "dmp_iterations": dmp_iterations,
-               "safe_regions": regions, "wall_seconds": wall, "versions": library_versions()}
+               "force_noise": force_noise, "safe_regions": regions, "wall_seconds": wall, "versions": library_versions()}
     _write_json(out / "door.json", payload)
+    if json_out:
+        return _print_json({**payload, "file": str(out / "door.json")})
     typer.echo(door_table(result.table, iterations=iterations, dmp_iterations=dmp_iterations,
                           force_reference=FORCE_REFERENCE,
                           regions=result.regions))
@@ -157,38 +183,6 @@ def _open_store(path: Path, *, readonly: bool = False, create: bool = True):
     return RunStore(path, readonly=readonly, create=create and not readonly)
 
 
-def _summary(task, method: str, seed: int, learner, seconds: float) -> dict:
-    from corl.learner import cost_of
-    from corl.versions import library_versions
-
-    history, best = learner.history, learner.best
-    return {
-        "task": task.name, "method": method, "seed": seed,
-        "success": best is not None,
-        "best_theta": None if best is None else [float(v) for v in best.theta],
-        "best_return": None if best is None else best.return_,
-        "J_initial": cost_of(task, history[0][0].w) if history else None,
-        "J_final": None if best is None else best.J,
-        "trials": len(history),
-        "failures": sum(not o.success for _, o in history),
-        "seconds": seconds,
-        "versions": library_versions(),
-    }
-
-
-def _task_extras(task, learner) -> dict:
-    """Door-style extras: the demonstration's J and return, the final return and door angle."""
-    if not hasattr(task, "simulate") or not learner.history:
-        return {}
-    from corl.learner import cost_of
-
-    demo_p, demo_o = learner.history[0]
-    best = learner.best
-    final = task.simulate(best.w)
-    return {"J_demo": cost_of(task, demo_p.w), "return_demo": demo_o.return_,
-            "return_final": best.return_, "door_angle_final": float(final.hinge_final)}
-
-
 @app.command("run")
 def run(
     task: str = typer.Argument(..., help="'synthetic', or an import path 'package.module:make_task'"),
@@ -197,7 +191,7 @@ def run(
     out: Path = typer.Option(Path("results/run"), help="output folder for summary.json"),
     store: Optional[Path] = typer.Option(None, help="run store (default OUT/run.corl)"),
     resume: bool = typer.Option(False, "--resume", help="continue the store's latest run exactly (or start one)"),
-    quiet: bool = typer.Option(False, "--quiet", help="no progress output"),
+    quiet: bool = QUIET, json_out: bool = JSON_OUT, log: bool = LOG,
     video: bool = typer.Option(True, "--video/--no-video", help="render demonstration vs learned motion"),
 ) -> None:
     """One learning run, every trial committed to the store; writes OUT/summary.json, figures, video."""
@@ -205,6 +199,7 @@ def run(
 
     from corl.errors import CorlError
     from corl.experiments.methods import METHODS
+    from corl.experiments.summary import run_summary, run_text, task_extras
     from corl.session import StoredRun
     from corl.tasks.registry import load_task
 
@@ -237,30 +232,42 @@ def run(
         except CorlError as exc:
             _fail(str(exc))
 
-        def echo(p, o):
-            if not quiet:
-                r = "-" if o.return_ is None else f"{o.return_:+.4f}"
-                typer.echo(f"trial {p.index:4d}  round {p.round}  {p.step:14s} "
-                           f"theta={np.round(p.theta, 4).tolist()} {'success' if o.success else 'FAILURE'}  R={r}",
-                           err=True)
-
         import numpy as np
 
-        try:
-            session.run(the_task, callback=echo)
-        except CorlError as exc:
-            _fail(f"{exc} (the store {store_path} keeps every trial so far; resume with --resume)")
-        payload = _summary(the_task, method, seed, session.learner, time.perf_counter() - t0)
-        payload["store"] = str(store_path)
-        payload["run_id"] = session.run_id
-        payload.update(_task_extras(the_task, session.learner))
-        if not quiet:
-            typer.echo("writing figures and video ...", err=True)
-        from corl.experiments.artifacts import write_run_artifacts
+        def line(p, o):  # the --log line of one trial
+            r = "-" if o.return_ is None else f"{o.return_:+.4f}"
+            return (f"trial {p.index:4d}  round {p.round}  {p.step:14s} "
+                    f"theta={np.round(p.theta, 4).tolist()} {'success' if o.success else 'FAILURE'}  R={r}")
 
-        payload["files"] = write_run_artifacts(the_task, session.learner, out, video=video)
+        budget = getattr(getattr(session.learner, "optimizer", None), "max_evals", None)  # methods over w only
+        with _tracker(f"run {method}", quiet=quiet, log=log, json_out=json_out) as tracker:
+            def best():
+                return None if session.best is None else session.best.return_
+
+            def tick(p, o):
+                tracker.update("trials", done=p.index + 1, total=budget, failures=int(not o.success), best=best(),
+                               note=f"round {p.round} {p.step}", line=line(p, o))
+
+            if session.history:  # resumed: what the store already holds
+                tracker.update("trials", done=len(session.history), total=budget, best=best(), note="resumed",
+                               failures=sum(not o.success for _, o in session.history))
+            try:
+                session.run(the_task, callback=tick)
+                tracker.update("trials", done=len(session.history), total=len(session.history), note="finished")
+            except CorlError as exc:
+                _fail(f"{exc} (the store {store_path} keeps every trial so far; resume with --resume)")
+            payload = run_summary(the_task, method, seed, session.learner, time.perf_counter() - t0)
+            payload["store"] = str(store_path)
+            payload["run_id"] = session.run_id
+            payload.update(task_extras(the_task, session.learner))
+            tracker.message("writing figures and video ..." if video else "writing figures ...")
+            from corl.experiments.artifacts import write_run_artifacts
+
+            payload["files"] = write_run_artifacts(the_task, session.learner, out, video=video)
     _write_json(out / "summary.json", payload)
-    typer.echo(json.dumps({k: v for k, v in payload.items() if k != "versions"}, indent=2))
+    if json_out:
+        return _print_json(payload)
+    typer.echo(run_text(payload, out / "summary.json"))
 
 
 @app.command("ask")
@@ -347,9 +354,16 @@ def tell(
         _fail(str(exc))
 
 
+def _run_info(r) -> dict:
+    """A :class:`corl.store.RunInfo` as JSON (``corl runs --json``, ``corl status --json``)."""
+    return {"id": r.id, "task": r.task, "method": r.method, "seed": r.seed, "status": r.status.value,
+            "created": r.created, "trials": r.n_trials, "told": r.n_told}
+
+
 @app.command("status")
 def status(store: Path = typer.Option(..., help="run store"),
-           run_id: Optional[int] = typer.Option(None, "--run", help="run id (default: latest)")) -> None:
+           run_id: Optional[int] = typer.Option(None, "--run", help="run id (default: latest)"),
+           json_out: bool = JSON_OUT) -> None:
     """Show a run: its configuration, trials so far, failures and the best trial."""
     from corl.errors import CorlError
 
@@ -364,6 +378,11 @@ def status(store: Path = typer.Option(..., help="run store"),
     told = [t for t in trials if t.outcome is not None]
     ok = [t for t in told if t.outcome.success]
     best = max(ok, key=lambda t: t.outcome.return_, default=None)
+    if json_out:
+        return _print_json({**_run_info(info), "trials": len(trials), "told": len(told),
+                            "pending": len(trials) - len(told), "failures": len(told) - len(ok),
+                            "best": None if best is None else {"trial": best.index, "return": best.outcome.return_,
+                                                               "theta": best.proposal.theta.tolist()}})
     typer.echo(f"run {info.id}: task {info.task}, method {info.method}, seed {info.seed}, {info.status.value}")
     typer.echo(f"trials {len(trials)} (told {len(told)}, pending {len(trials) - len(told)}), "
                f"failures {len(told) - len(ok)}")
@@ -373,7 +392,7 @@ def status(store: Path = typer.Option(..., help="run store"),
 
 
 @app.command("runs")
-def runs(store: Path = typer.Option(..., help="run store")) -> None:
+def runs(store: Path = typer.Option(..., help="run store"), json_out: bool = JSON_OUT) -> None:
     """List a store's runs."""
     from corl.errors import CorlError
 
@@ -382,6 +401,8 @@ def runs(store: Path = typer.Option(..., help="run store")) -> None:
             infos = db.runs()
     except CorlError as exc:
         _fail(str(exc))
+    if json_out:
+        return _print_json({"runs": [_run_info(r) for r in infos]})
     typer.echo(f"{'id':>4} {'task':<12} {'method':<20} {'seed':>6} {'trials':>7} {'status':<9} created")
     for r in infos:
         typer.echo(f"{r.id:>4} {r.task:<12} {r.method:<20} {r.seed!s:>6} {r.n_trials:>7} {r.status.value:<9} {r.created}")
@@ -403,6 +424,27 @@ def export(store: Path = typer.Option(..., help="run store"),
     except CorlError as exc:
         _fail(str(exc))
     typer.echo(f"wrote {table} and {arrays}")
+
+
+@app.command("report")
+def report(store: Path = typer.Option(..., help="run store"),
+           out: Path = typer.Option(..., help="folder for the pages run_<id>.html (and index.html)"),
+           run_id: Optional[int] = typer.Option(None, "--run", help="run id (default: every run)"),
+           video: bool = typer.Option(True, "--video/--no-video", help="embed the video for tasks that render"),
+           quiet: bool = QUIET, json_out: bool = JSON_OUT) -> None:
+    """One self-contained HTML page per run: configuration, versions, curves, return map, trials, video."""
+    from corl.errors import CorlError
+    from corl.experiments.html_report import write_reports
+
+    with _tracker("report", quiet=quiet, log=True, json_out=json_out) as tracker:  # messages only
+        try:
+            pages = write_reports(store, out, run_id=run_id, video=video, log=tracker.message)
+        except CorlError as exc:
+            _fail(str(exc))
+    if json_out:
+        return _print_json({"store": str(store), "pages": [str(page) for page in pages]})
+    for page in pages:
+        typer.echo(str(page))
 
 
 def main() -> None:

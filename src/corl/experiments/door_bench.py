@@ -50,7 +50,7 @@ from corl.errors import InputError
 
 __all__ = ["CORL_METHODS", "DOOR_METHODS", "PAPER_FIG3", "DMP_BOX_SCALES", "DMP_POWER_STD", "DoorRun",
            "SafeRegion", "DoorBench", "safe_region", "distance_to_safe", "run_corl", "run_dmp_power",
-           "run_one", "door_sweep", "aggregate", "door_table"]
+           "run_one", "door_sweep", "aggregate"]
 
 CORL_METHODS = ("CORL+PIBU", "CORL+CMA")
 DOOR_METHODS = CORL_METHODS + ("DMP+PoWER",)
@@ -65,14 +65,16 @@ DMP_POWER_STD = 0.005     # PoWER's exploration std as a fraction of the box wid
 DMP_OVERLAP = 0.8         # neighbouring bases cross at 0.8: with 0.5 the 11-basis fit of the demonstration
                           # grasps too wide (the gripper width 5 mm off at t_c) and fails in the simulator
 
-Progress = Callable[[str, int, int, str], None]  # (stage, done, total, note)
+Progress = Callable[..., None]  # (stage, done, total, note, run=None); run: the DoorRun that just finished
 
 _TASKS: dict[tuple, object] = {}  # one DoorTask per worker process and settings (a MuJoCo scene)
 
 
 # -- tasks in worker processes ---------------------------------------------------------------------
 def _task_settings(task) -> dict:
-    return {"num_control_points": int(task.spline.num_control_points), "num_steps": int(task.num_steps)}
+    """What rebuilds ``task`` in a worker: its size and its (possibly re-timed) contact instants."""
+    return {"num_control_points": int(task.spline.num_control_points), "num_steps": int(task.num_steps),
+            "contact_times": tuple(float(t) for t in task.contact_times)}
 
 
 def _door_task(settings: dict):
@@ -81,7 +83,12 @@ def _door_task(settings: dict):
     if key not in _TASKS:
         from corl.tasks.door.task import DoorTask
 
-        _TASKS[key] = DoorTask(**settings)
+        options = dict(settings)
+        times = options.pop("contact_times", None)
+        task = DoorTask(**options)
+        if times is not None and not np.array_equal(times, task.contact_times):
+            task = task.retimed(lambda _: np.asarray(times, dtype=float))  # phase steps moved them
+        _TASKS[key] = task
     return _TASKS[key]
 
 
@@ -145,7 +152,7 @@ def _realise_and_roll_out(settings: dict, anchor: np.ndarray, thetas: np.ndarray
 
 def safe_region(task, n1: int = 25, n2: int = 15, *, anchor: np.ndarray | None = None,
                 cache: str | Path | None = None, jobs: int = 2, backend: str = "loky",
-                progress: Progress | None = None) -> SafeRegion:
+                address: str | None = None, progress: Progress | None = None) -> SafeRegion:
     """The safe region over theta from a dense sweep (about 0.4 s per grid point).
 
     Each theta of an ``n1 x n2`` grid over ``task.theta_bounds`` is realised from ``anchor`` with
@@ -159,11 +166,12 @@ def safe_region(task, n1: int = 25, n2: int = 15, *, anchor: np.ndarray | None =
     anchor : (n,) the trajectory thetas are realised from; default the demonstration's ``w0``.
     cache : folder for ``door_safe_region_<key>.npz``; the key covers the task's settings, the
         grid, the anchor and :func:`corl.versions.library_versions`.
-    jobs, backend : joblib workers and backend.
+    jobs, backend, address : workers and where they run (:func:`corl.experiments.backends.cluster`).
     progress : ``(stage, done, total, note)``, called as chunks of the grid finish.
     """
-    from joblib import Parallel, delayed, effective_n_jobs
+    from joblib import effective_n_jobs
 
+    from corl.experiments.backends import cluster, run_unordered
     from corl.versions import library_versions
 
     if n1 < 2 or n2 < 2:
@@ -183,18 +191,18 @@ def safe_region(task, n1: int = 25, n2: int = 15, *, anchor: np.ndarray | None =
 
     T1, T2 = np.meshgrid(theta1, theta2, indexing="ij")
     points = np.column_stack([T1.ravel(), T2.ravel()])
-    n_chunks = min(len(points), 4 * max(1, effective_n_jobs(jobs)))
-    chunks = [np.arange(j, len(points), n_chunks) for j in range(n_chunks)]  # interleaved: even work
     success = np.zeros(len(points), dtype=bool)
     realised = np.zeros(len(points), dtype=bool)
-    parallel = Parallel(n_jobs=jobs, backend=backend, return_as="generator")
     done = 0
-    for idx, (s, r) in zip(chunks, parallel(delayed(_realise_and_roll_out)(settings, anchor, points[idx])
-                                            for idx in chunks)):
-        success[idx], realised[idx] = s, r
-        done += len(idx)
-        if progress is not None:
-            progress("safe region", done, len(points), f"{int(success.sum())} safe so far")
+    with cluster(backend, jobs, address):  # inside door_sweep: its cluster, already running
+        n_chunks = min(len(points), 4 * max(1, effective_n_jobs(jobs)))
+        chunks = [np.arange(j, len(points), n_chunks) for j in range(n_chunks)]  # interleaved: even work
+        arguments = [(settings, anchor, points[idx]) for idx in chunks]
+        for k, (s, r) in run_unordered(_realise_and_roll_out, arguments, jobs=jobs, backend=backend):
+            success[chunks[k]], realised[chunks[k]] = s, r  # filed by grid index: any finishing order
+            done += len(chunks[k])
+            if progress is not None:
+                progress("safe region", done, len(points), f"{int(success.sum())} safe so far")
     region = SafeRegion(theta1, theta2, success.reshape(n1, n2), realised.reshape(n1, n2), key)
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -233,7 +241,8 @@ class DoorRun:
     start_return : R of the policy the black-box step starts from (CORL: its w* after step 1;
         DMP+PoWER: the fitted DMP); first_return : R of the first black-box trial (NaN if it failed).
     failed_thetas : (failures, 2) theta of every failed trial.
-    anchor : (n,) the trajectory the safe region of this run is realised from.
+    anchor : (n,) the trajectory the safe region of this run is realised from; anchor_times : the
+        contact instants its constraints hold at (phase steps move them, Sec. VI-B).
     rollouts : all rollouts of the run; seconds : wall time of the run.
     """
 
@@ -248,6 +257,7 @@ class DoorRun:
     failed_thetas: np.ndarray
     best_theta: np.ndarray | None
     anchor: np.ndarray
+    anchor_times: tuple
     rollouts: int
     seconds: float
 
@@ -285,7 +295,8 @@ def run_corl(method: str, seed: int, iterations: int, *, task=None) -> DoorRun:
         first_return=float(rl[0][1].return_) if rl and rl[0][1].success else math.nan,
         failed_thetas=np.array(fails, dtype=float).reshape(-1, 2),
         best_theta=None if learner.best is None else np.asarray(learner.best.theta, dtype=float),
-        anchor=np.asarray(anchor_p.w, dtype=float), rollouts=len(history), seconds=time.perf_counter() - t0)
+        anchor=np.asarray(anchor_p.w, dtype=float), anchor_times=tuple(learner.task.contact_times.tolist()),
+        rollouts=len(history), seconds=time.perf_counter() - t0)
 
 
 def _dmp_trial(task, dmp, params):
@@ -293,13 +304,13 @@ def _dmp_trial(task, dmp, params):
     from corl.problem import Outcome
     from corl.tasks.door.demo import CONTROL_DT
     from corl.tasks.door.sim import rollout
-    from corl.tasks.door.task import FORCE_REFERENCE
+    from corl.tasks.door.task import FORCE_REFERENCE, grasp_instant
 
     t, Y = dmp.reference(params, dt=CONTROL_DT, duration=task.duration)
     if not np.all(np.isfinite(Y)):
         return Outcome(False, None, {"diverged": True}), np.full(2, np.nan)
     theta = task.theta_of(task.spline.fit(t, Y))  # theta of the executed reference (B-spline fit)
-    result = rollout(Y, duration=task.duration, t_contact=task.t_contact, scene=task.scene)
+    result = rollout(Y, duration=task.duration, t_contact=grasp_instant(t, Y), scene=task.scene)
     if not result.success:
         return Outcome(False, None), theta
     return Outcome(True, 1.0 - result.force_mean / FORCE_REFERENCE), theta
@@ -350,7 +361,8 @@ def run_dmp_power(seed: int, iterations: int = 150, *, task=None, box_scales: fl
         method="DMP+PoWER", seed=seed, trials=iterations, failures=len(fails), unrealisable=0,
         highest_return=max(ok) if ok else math.nan, start_return=start_return, first_return=first_return,
         failed_thetas=np.array(fails, dtype=float).reshape(-1, 2), best_theta=best[1],
-        anchor=np.asarray(demo.w, dtype=float), rollouts=iterations + 1, seconds=time.perf_counter() - t0)
+        anchor=np.asarray(demo.w, dtype=float), anchor_times=tuple(task.contact_times.tolist()),
+        rollouts=iterations + 1, seconds=time.perf_counter() - t0)
 
 
 def run_one(method: str, seed: int, iterations: int, dmp_iterations: int = 150,
@@ -374,16 +386,24 @@ class DoorBench:
 
 def door_sweep(methods, seeds: int, iterations: int = 100, *, out: str | Path | None = None,
                dmp_iterations: int = 150, grid: tuple[int, int] = (25, 15), jobs: int = 2,
-               backend: str = "loky", progress: Progress | None = None) -> DoorBench:
-    """Every method from seeds ``0 .. seeds - 1`` (joblib), then the safe regions and the table.
+               backend: str = "loky", address: str | None = None, progress: Progress | None = None,
+               force_noise: float = 0.0) -> DoorBench:
+    """Every method from seeds ``0 .. seeds - 1``, then the safe regions and the table.
+
+    ``force_noise`` (N) adds a seeded error to the force measurement behind R (``DoorTask``), so
+    that seeds differ as they would on a robot; S, and so the safe region, stays exact.
+
+    ``jobs``, ``backend`` and ``address`` say where the runs and the safe-region grids go (local
+    processes, a Ray or a Dask cluster: :func:`corl.experiments.backends.cluster`, opened once).
 
     The safe region of a run is realised from that run's anchor (CORL: ``w*`` after motion
     optimization, the same for every seed; DMP+PoWER: the demonstration); each distinct anchor's
     grid is computed once and cached in ``out``.
     """
-    from joblib import Parallel, delayed
+    from corl.experiments.backends import check_backend, cluster, run_unordered
 
     methods = list(methods)
+    check_backend(backend, address)
     unknown = [m for m in methods if m not in DOOR_METHODS]
     if unknown:
         raise InputError(f"unknown door method(s) {', '.join(unknown)}; choose from {', '.join(DOOR_METHODS)}")
@@ -391,21 +411,26 @@ def door_sweep(methods, seeds: int, iterations: int = 100, *, out: str | Path | 
         raise InputError("seeds, iterations and dmp_iterations must be at least 1")
     task = _door_task({})
     settings = _task_settings(task)
-    jobs_list = [(m, s) for m in methods for s in range(seeds)]
-    parallel = Parallel(n_jobs=jobs, backend=backend, return_as="generator_unordered", batch_size=1)
+    def seeded(s: int) -> dict:  # each seed its own measurement error; exact without noise
+        return {**settings, "force_noise": float(force_noise), "seed": s} if force_noise > 0 else settings
+
+    jobs_list = [(m, s, iterations, dmp_iterations, seeded(s)) for m in methods for s in range(seeds)]
     runs = []
-    for r in parallel(delayed(run_one)(m, s, iterations, dmp_iterations, settings) for m, s in jobs_list):
-        runs.append(r)
-        if progress is not None:
-            progress("runs", len(runs), len(jobs_list), f"{r.method} seed {r.seed}: {r.failures}/{r.trials} failed")
-    order = {m: k for k, m in enumerate(methods)}
-    runs.sort(key=lambda r: (order[r.method], r.seed))
     regions: dict[str, SafeRegion] = {}
-    for r in runs:
-        digest = _digest(r.anchor)
-        if digest not in regions:
-            regions[digest] = safe_region(task, *grid, anchor=r.anchor, cache=out, jobs=jobs, backend=backend,
-                                          progress=progress)
+    with cluster(backend, jobs, address):
+        for _, r in run_unordered(run_one, jobs_list, jobs=jobs, backend=backend):
+            runs.append(r)
+            if progress is not None:
+                progress("runs", len(runs), len(jobs_list), f"{r.method} seed {r.seed}: {r.failures}/{r.trials} failed",
+                         run=r)
+        order = {m: k for k, m in enumerate(methods)}
+        runs.sort(key=lambda r: (order[r.method], r.seed))
+        for r in runs:
+            digest = _digest(r.anchor)
+            if digest not in regions:
+                anchor_task = _door_task({**settings, "contact_times": r.anchor_times})
+                regions[digest] = safe_region(anchor_task, *grid, anchor=r.anchor, cache=out, jobs=jobs,
+                                              backend=backend, progress=progress)
     return DoorBench(runs, regions, aggregate(runs, regions, methods))
 
 
