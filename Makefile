@@ -14,7 +14,7 @@ export MKL_NUM_THREADS ?= 1
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[test,ray,dask]"
+	$(PY) -m pip install --quiet -e ".[test,ray,dask,docs]"
 	touch $(STAMP)
 
 demo: $(STAMP)
