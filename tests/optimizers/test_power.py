@@ -7,30 +7,8 @@ import pytest
 
 from corl.errors import InputError, StateError
 from corl.optimizers.power import PoWER, PoWERConfig, power_weights
-from corl.problem import Bounds, Outcome
-
-UNIT2 = Bounds(np.zeros(2), np.ones(2))
-C2 = np.array([0.3, 0.7])
-
-
-def quadratic(c, fail_above=None):
-    """Return of ``-(x - c)^2`` summed; failure (no return) when ``x[-1] > fail_above``."""
-
-    def rollout(x):
-        if fail_above is not None and x[-1] > fail_above:
-            return Outcome(False, None)
-        return Outcome(True, -float(np.sum((x - c) ** 2)))
-
-    return rollout
-
-
-def run(opt, rollout):
-    asked = []
-    while not opt.done:
-        x = opt.ask()
-        asked.append(x)
-        opt.tell(x, rollout(x))
-    return np.array(asked)
+from blackbox_loop import C2, UNIT2, quadratic, run
+from corl.problem import Outcome
 
 
 def test_converges_on_2d_quadratic_and_stops_at_budget():
