@@ -89,3 +89,19 @@ def test_maximize_works_in_4d():
     c = np.array([0.2, -0.5, 0.7, 0.1])
     x, v = maximize(lambda X: -((X - c) ** 2).sum(1), b, rng=rng, config=MaximizerConfig(refine_rounds=5))
     np.testing.assert_allclose(x, c, atol=0.02)
+
+
+def test_maximize_finds_a_thin_ridge_in_2d():
+    # PIBU's boundary term lives on a thin band (p in 0.45..0.55) beside a broad PI bump; the old
+    # 31 x 31 start grid (spacing 1/30) stepped over a band this narrow and returned the bump.
+    b = Bounds([0.0, 0.0], [1.0, 1.0])
+
+    def acq(X):
+        bump = 0.8 * np.exp(-((X - [0.2, 0.2]) ** 2).sum(1) / 0.02)
+        ridge = np.where((X[:, 0] > 0.51) & (X[:, 0] < 0.52), 0.9, 0.0)
+        return np.maximum(bump, ridge)
+
+    x, v = maximize(acq, b, rng=np.random.default_rng(0))
+    assert v == 0.9 and 0.51 < x[0] < 0.52
+    _, v_coarse = maximize(acq, b, rng=np.random.default_rng(0), config=MaximizerConfig(grid_2d=31))
+    assert v_coarse < 0.9  # the regression this guards against

@@ -28,7 +28,7 @@ __all__ = ["MaximizerConfig", "maximize"]
 @dataclass(frozen=True)
 class MaximizerConfig:
     grid_1d: int = 2049
-    grid_2d: int = 31
+    grid_2d: int = 129
     samples_nd: int = 2048
     n_keep: int = 4
     refine_1d: int = 33
