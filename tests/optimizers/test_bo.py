@@ -89,7 +89,24 @@ def test_sal_uses_the_boundary_distance_and_stays_safe():
     assert np.any(opt.safety_ < SALConfig().critical_distance)  # distances were observed
 
 
+def test_stop_distance_is_measured_in_the_scaled_units():
+    from corl.optimizers.bo import _stop
+
+    X = np.array([[0.0, 0.0]])
+    x = np.array([0.0005, 0.0005])  # 0.7 mm away in raw units
+    assert _stop(StopRule.NEAR_SAMPLED, x, X, 1e-3)
+    # the second axis counts 10x (its length scales are 10x shorter): now 5 mm away
+    assert not _stop(StopRule.NEAR_SAMPLED, x, X, 1e-3, (1.0, 0.1))
+    assert not _stop(StopRule.SMALL_STEP, x, X, 1e-3, (1.0, 0.1))
+    assert not _stop(StopRule.BUDGET, x, X, 1e-3)
+    with pytest.raises(InputError, match="3 entries"):
+        _stop(StopRule.NEAR_SAMPLED, x, X, 1e-3, (1.0, 1.0, 1.0))
+
+
 def test_configs_validate():
+    with pytest.raises(InputError, match="distance_scale"):
+        BOConfig(distance_scale=(1.0, 0.0))
+    assert BOConfig(distance_scale=[1, 2]).distance_scale == (1.0, 2.0)
     with pytest.raises(InputError):
         BOConfig(stop_distance=-1)
     with pytest.raises(InputError):

@@ -52,9 +52,14 @@ class MethodSettings:
     failure_return: float = -15.0
     ucb_kappa: float = 2.0
     cma_sigma0: float = 0.3
+    # Per-dimension unit of theta distances in the stopping rules (None: theta's own units). A
+    # task whose length scales are stretched per dimension (ARD) gives the same stretch here, so
+    # that "near a sampled point" means the same thing along every axis.
+    theta_scale: tuple[float, ...] | None = None
 
     def bo(self, stop_rule: StopRule = StopRule.NEAR_SAMPLED, stop_distance: float = 1e-3) -> BOConfig:
-        return BOConfig(self.regression, self.classifier, stop_rule=stop_rule, stop_distance=stop_distance)
+        return BOConfig(self.regression, self.classifier, stop_rule=stop_rule, stop_distance=stop_distance,
+                        distance_scale=self.theta_scale)
 
 
 def _factory(name: str, s: MethodSettings) -> Callable:

@@ -9,7 +9,7 @@ classifier on all points; ``UCB`` ignores safety and models the score (return on
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -35,19 +35,31 @@ class BOConfig:
     maximizer: MaximizerConfig = field(default_factory=MaximizerConfig)
     stop_rule: StopRule = StopRule.NEAR_SAMPLED
     stop_distance: float = 1e-3
+    distance_scale: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "stop_rule", StopRule(self.stop_rule))
         if self.stop_distance < 0:
             raise InputError(f"stop_distance must be >= 0, got {self.stop_distance}")
+        if self.distance_scale is not None:
+            scale = tuple(float(v) for v in np.atleast_1d(self.distance_scale))
+            if not all(np.isfinite(v) and v > 0 for v in scale):
+                raise InputError(f"distance_scale must hold positive finite numbers (one per theta dimension), "
+                                 f"got {self.distance_scale}")
+            object.__setattr__(self, "distance_scale", scale)
 
 
-def _stop(rule: StopRule, x: np.ndarray, X: np.ndarray, distance: float) -> bool:
+def _stop(rule: StopRule, x: np.ndarray, X: np.ndarray, distance: float,
+          scale: tuple[float, ...] | None = None) -> bool:
+    """The stopping rule; differences are divided by ``scale`` per dimension (the unit of ``distance``)."""
     if len(X) == 0 or rule is StopRule.BUDGET:
         return False
+    unit = 1.0 if scale is None else np.asarray(scale, dtype=float)
+    if np.ndim(unit) and unit.shape != x.shape:
+        raise InputError(f"distance_scale has {unit.size} entries but theta has {x.size} dimensions")
     if rule is StopRule.NEAR_SAMPLED:
-        return bool(np.min(np.linalg.norm(X - x, axis=1)) < distance)
-    return bool(np.linalg.norm(X[-1] - x) < distance)
+        return bool(np.min(np.linalg.norm((X - x) / unit, axis=1)) < distance)
+    return bool(np.linalg.norm((X[-1] - x) / unit) < distance)
 
 
 class _BayesOpt(BlackBoxOptimizer):
@@ -66,7 +78,8 @@ class _BayesOpt(BlackBoxOptimizer):
         x, value = maximize(acq, self.bounds, rng=self.rng, config=self.config.maximizer, extra=self.X_)
         if self.stop_when_zero and not value > 0.0:
             return None  # nothing to gain anywhere: no likely improvement, no uncertain boundary
-        if _stop(self.config.stop_rule, x, self.X_, self.config.stop_distance):
+        cfg = self.config
+        if _stop(cfg.stop_rule, x, self.X_, cfg.stop_distance, cfg.distance_scale):
             return None
         return x
 
@@ -87,8 +100,7 @@ class PIBUOptimizer(_BayesOpt):
     def __init__(self, bounds: Bounds, config: BOConfig = BOConfig(), pibu: PIBUConfig = PIBUConfig(), *,
                  max_evals: int = 100, seed=None) -> None:
         if pibu.variant is PIBUVariant.LITERAL and config.stop_rule is StopRule.NEAR_SAMPLED:
-            config = BOConfig(config.regression, config.classifier, config.maximizer, StopRule.SMALL_STEP,
-                              config.stop_distance)
+            config = replace(config, stop_rule=StopRule.SMALL_STEP)
         super().__init__(bounds, config, max_evals=max_evals, seed=seed, name="PIBU")
         self.stop_when_zero = True
         self.pibu = pibu

@@ -185,13 +185,14 @@ class DoorTask:
                           max_optimization_steps=60, max_rl_trials=60, max_phase_steps=20)
         # The paper gives one length scale per GP; its theta units are not stated. Ours span
         # 150 mm along the handle but only 20 mm in width, so the width dimension gets the
-        # paper's length scale times the ratio of the two ranges (ARD, Eq. 16).
+        # paper's length scale times the ratio of the two ranges (ARD, Eq. 16), and PIBU's
+        # stopping distance (1e-3, "next point near a sampled one") the same stretch.
         width = self.theta_bounds.width
         ratio = float(width[1] / width[0])
         regression = replace(DOOR_REGRESSION, lengthscale=(DOOR_REGRESSION.lengthscale, DOOR_REGRESSION.lengthscale * ratio))
         classifier = replace(DOOR_CLASSIFIER, lengthscale=(DOOR_CLASSIFIER.lengthscale, DOOR_CLASSIFIER.lengthscale * ratio))
         return MethodSettings(regression=regression, classifier=classifier, corl=corl,
-                              rl_budget=60, direct_budget=150)
+                              rl_budget=60, direct_budget=150, theta_scale=(1.0, ratio))
 
     def retimed(self, time_map) -> "DoorTask":
         """The task with its contact instants moved by a phase step (Sec. VI-B): a copy whose Eq. 6
@@ -238,12 +239,19 @@ class DoorTask:
                     (bool(v) if isinstance(v, (bool, np.bool_)) else None)) for k, v in info.items()}
         if not result.success:
             return Outcome(False, None, info)
-        force = result.force_mean
+        force = self.measured_force(result.force_mean, w)
         if self.force_noise > 0.0:
-            digest = zlib.crc32(np.ascontiguousarray(w, dtype=float).tobytes())
-            force += self.force_noise * float(np.random.default_rng([self.seed, digest]).standard_normal())
             info["force_measured"] = force
         return Outcome(True, 1.0 - force / FORCE_REFERENCE, info)
+
+    def measured_force(self, force: float, key: np.ndarray) -> float:
+        """What the wrist sensor reports for a true mean force (N): ``force`` plus the seeded error
+        (``force_noise``), a function of ``(seed, key)`` so that replaying a policy (``key``: its
+        parameters, any array) reads the same value."""
+        if self.force_noise == 0.0:
+            return float(force)
+        digest = zlib.crc32(np.ascontiguousarray(key, dtype=float).tobytes())
+        return float(force) + self.force_noise * float(np.random.default_rng([self.seed, digest]).standard_normal())
 
     # -- for people -----------------------------------------------------------------------------
     def render_comparison(self, w_demo: np.ndarray, w_learned: np.ndarray, path) -> str:
