@@ -131,6 +131,7 @@ def bench_door(
 
     from corl.errors import CorlError
     from corl.experiments.door_bench import DOOR_METHODS, door_sweep
+    from corl.experiments.door_curves import curves_table, plot_trial_curves
     from corl.experiments.report import door_table
     from corl.tasks.door.task import FORCE_REFERENCE
     from corl.versions import library_versions
@@ -165,14 +166,17 @@ def bench_door(
                        "unrealised": int((~r.realised).sum()), "spacing": r.spacing.tolist()}
                for r in result.regions.values()}
     payload = {"methods": result.table, "seeds": seeds, "iterations": iterations, "dmp_iterations": dmp_iterations,
-               "force_noise": force_noise, "safe_regions": regions, "wall_seconds": wall, "versions": library_versions()}
+               "force_noise": force_noise, "safe_regions": regions, "curves": result.curves, "wall_seconds": wall,
+               "versions": library_versions()}
     _write_json(out / "door.json", payload)
+    figure = plot_trial_curves(result.curves, out / "door_curves.png")
     if json_out:
-        return _print_json({**payload, "file": str(out / "door.json")})
+        return _print_json({**payload, "file": str(out / "door.json"), "figure": str(figure)})
     typer.echo(door_table(result.table, iterations=iterations, dmp_iterations=dmp_iterations,
                           force_reference=FORCE_REFERENCE,
                           regions=result.regions))
-    typer.echo(f"\n{len(names)} methods x {seeds} seeds in {wall:.1f} s; wrote {out / 'door.json'}")
+    typer.echo("\n" + curves_table(result.curves))
+    typer.echo(f"\n{len(names)} methods x {seeds} seeds in {wall:.1f} s; wrote {out / 'door.json'} and {figure}")
 
 
 def _open_store(path: Path, *, readonly: bool = False, create: bool = True):

@@ -27,11 +27,10 @@ Setup of the runs (beyond the paper, which states no budget for the door):
   stop earlier by its own rule (its next point within 1e-3 of a sampled one).
 * A theta the projection cannot realise is told to the black-box method as a failure without a
   rollout (see :mod:`corl.learner`); those are counted apart (``unrealisable``), not as failures.
-* DMP+PoWER: a DMP (11 bases per dimension, 96 parameters) fitted to the demonstration's
-  reference, PoWER over its parameters in a box of ``DMP_BOX_SCALES`` parameter scales around the
-  fit; trial 0 is the fitted DMP, then ``dmp_iterations`` PoWER trials. Its theta is measured on
-  the executed reference (a B-spline fit of it, then ``task.theta_of``); the DMP's trajectory is
-  not a projection from the anchor, so its distance to the safe region is only indicative.
+* DMP+PoWER: PoWER over the 96 parameters of a DMP fitted to the demonstration
+  (:mod:`corl.experiments.door_dmp`); its theta is measured on the executed reference, and its
+  trajectory is not a projection from the anchor, so its distance to the safe region is only
+  indicative.
 """
 
 from __future__ import annotations
@@ -48,9 +47,8 @@ import numpy as np
 
 from corl.errors import InputError
 
-__all__ = ["CORL_METHODS", "DOOR_METHODS", "PAPER_FIG3", "DMP_BOX_SCALES", "DMP_POWER_STD", "DoorRun",
-           "SafeRegion", "DoorBench", "safe_region", "distance_to_safe", "run_corl", "run_dmp_power",
-           "run_one", "door_sweep", "aggregate"]
+__all__ = ["CORL_METHODS", "DOOR_METHODS", "PAPER_FIG3", "DoorRun", "SafeRegion", "DoorBench", "safe_region",
+           "distance_to_safe", "true_return", "run_corl", "run_one", "door_sweep", "aggregate"]
 
 CORL_METHODS = ("CORL+PIBU", "CORL+CMA")
 DOOR_METHODS = CORL_METHODS + ("DMP+PoWER",)
@@ -58,13 +56,6 @@ PAPER_FIG3 = {  # highest return (mean, std), failure rate (mean, std), max dist
     "CORL+PIBU": (0.45, 0.032, 0.157, 0.021, 0.0146, 0.006),
     "CORL+CMA": (0.41, 0.017, 0.190, 0.102, 0.0358, 0.030),
 }
-DMP_BASIS = 11            # basis functions per dimension: 8 (11 + 1) = 96 parameters (Sec. VIII-B)
-DMP_BOX_SCALES = 3.0      # PoWER's box: fitted params +- this many param_scale units
-DMP_POWER_STD = 0.005     # PoWER's exploration std as a fraction of the box width (0.03 param scales);
-                          # the best of 0.0025, 0.005, 0.01, 0.02 on seed 0 over 40 trials (0.02: 38 failures)
-DMP_OVERLAP = 0.8         # neighbouring bases cross at 0.8: with 0.5 the 11-basis fit of the demonstration
-                          # grasps too wide (the gripper width 5 mm off at t_c) and fails in the simulator
-
 Progress = Callable[..., None]  # (stage, done, total, note, run=None); run: the DoorRun that just finished
 
 _TASKS: dict[tuple, object] = {}  # one DoorTask per worker process and settings (a MuJoCo scene)
@@ -241,6 +232,10 @@ class DoorRun:
     start_return : R of the policy the black-box step starts from (CORL: its w* after step 1;
         DMP+PoWER: the fitted DMP); first_return : R of the first black-box trial (NaN if it failed).
     failed_thetas : (failures, 2) theta of every failed trial.
+    trial_success, trial_returns : (trials,) S and measured R of every trial in order (R NaN on a
+        failure): the learning curves of Fig. 3 (:mod:`corl.experiments.door_curves`).
+    final_return : the true R (no sensor error) of the policy the method returns, its best measured
+        one; with ``force_noise`` the highest measured R is biased upwards, this is not.
     anchor : (n,) the trajectory the safe region of this run is realised from; anchor_times : the
         contact instants its constraints hold at (phase steps move them, Sec. VI-B).
     rollouts : all rollouts of the run; seconds : wall time of the run.
@@ -255,6 +250,9 @@ class DoorRun:
     start_return: float
     first_return: float
     failed_thetas: np.ndarray
+    trial_success: np.ndarray
+    trial_returns: np.ndarray
+    final_return: float
     best_theta: np.ndarray | None
     anchor: np.ndarray
     anchor_times: tuple
@@ -273,6 +271,13 @@ def _corl_settings(task, iterations: int):
     return replace(preset, corl=corl, rl_budget=iterations + 1)
 
 
+def true_return(outcome) -> float:
+    """R of a successful door Outcome from the true mean force (``info["force_mean"]``), no sensor error."""
+    from corl.tasks.door.task import FORCE_REFERENCE
+
+    return 1.0 - float(outcome.info["force_mean"]) / FORCE_REFERENCE
+
+
 def run_corl(method: str, seed: int, iterations: int, *, task=None) -> DoorRun:
     """One round of Algorithm 1 (motion optimization, then ``iterations`` black-box trials)."""
     from corl.experiments.methods import make_method
@@ -289,80 +294,19 @@ def run_corl(method: str, seed: int, iterations: int, *, task=None) -> DoorRun:
     anchor_p, anchor_o = before[-1]  # step 1 stops at its first failure: the last success is w*
     ok = [o.return_ for _, o in history if o.success]
     fails = [p.theta for p, o in rl if not o.success]
+    best = learner.best
+    chosen = [o for p, o in history if best is not None and o.success and np.array_equal(p.w, best.w)]
     return DoorRun(
         method=method, seed=seed, trials=len(rl), failures=len(fails), unrealisable=learner.unrealisable,
         highest_return=max(ok) if ok else math.nan, start_return=float(anchor_o.return_),
         first_return=float(rl[0][1].return_) if rl and rl[0][1].success else math.nan,
         failed_thetas=np.array(fails, dtype=float).reshape(-1, 2),
+        trial_success=np.array([o.success for _, o in rl], dtype=bool),
+        trial_returns=np.array([o.return_ if o.success else math.nan for _, o in rl], dtype=float),
+        final_return=true_return(chosen[-1]) if chosen else math.nan,
         best_theta=None if learner.best is None else np.asarray(learner.best.theta, dtype=float),
         anchor=np.asarray(anchor_p.w, dtype=float), anchor_times=tuple(learner.task.contact_times.tolist()),
         rollouts=len(history), seconds=time.perf_counter() - t0)
-
-
-def _dmp_trial(task, dmp, params):
-    """Roll out the DMP with ``params`` (96,): its Outcome (R as the door task's) and measured theta."""
-    from corl.problem import Outcome
-    from corl.tasks.door.demo import CONTROL_DT
-    from corl.tasks.door.sim import rollout
-    from corl.tasks.door.task import FORCE_REFERENCE, grasp_instant
-
-    t, Y = dmp.reference(params, dt=CONTROL_DT, duration=task.duration)
-    if not np.all(np.isfinite(Y)):
-        return Outcome(False, None, {"diverged": True}), np.full(2, np.nan)
-    theta = task.theta_of(task.spline.fit(t, Y))  # theta of the executed reference (B-spline fit)
-    result = rollout(Y, duration=task.duration, t_contact=grasp_instant(t, Y), scene=task.scene)
-    if not result.success:
-        return Outcome(False, None), theta
-    return Outcome(True, 1.0 - result.force_mean / FORCE_REFERENCE), theta
-
-
-def run_dmp_power(seed: int, iterations: int = 150, *, task=None, box_scales: float = DMP_BOX_SCALES,
-                  std: float = DMP_POWER_STD) -> DoorRun:
-    """The paper's baseline: PoWER over the 96 shape and goal parameters of a fitted DMP.
-
-    Trial 0 is the DMP fitted to the demonstration's reference (the PoWER mean's start); then
-    ``iterations`` PoWER trials in the box ``params +- box_scales * param_scale`` with exploration
-    ``std`` (a fraction of the box width). Failures score the task's ``failure_return``.
-    """
-    from corl.optimizers.power import PoWER, PoWERConfig
-    from corl.policies.dmp import DMP, DMPConfig
-    from corl.problem import Bounds
-
-    t0 = time.perf_counter()
-    task = task or _door_task({})
-    demo = task.demonstration()
-    times, Y = task.reference(demo.w)
-    dmp = DMP.fit(times, Y, n_basis=DMP_BASIS, config=DMPConfig(overlap=DMP_OVERLAP))
-    x0, scale = dmp.params, dmp.param_scale
-    bounds = Bounds(x0 - box_scales * scale, x0 + box_scales * scale)
-    optimizer = PoWER(bounds, x0, PoWERConfig(std=std), failure_return=task.method_settings().failure_return,
-                      max_evals=iterations + 1, seed=np.random.default_rng([seed, 96]))
-    returns, fails = [], []
-    start_return = first_return = math.nan
-    best = (-math.inf, None)
-    for k in range(iterations + 1):
-        params = x0 if k == 0 else optimizer.ask()
-        outcome, theta = _dmp_trial(task, dmp, params)
-        optimizer.tell(params, outcome)
-        r = float(outcome.return_) if outcome.success else math.nan
-        if k == 0:
-            start_return = r
-            continue
-        if k == 1:
-            first_return = r
-        if outcome.success:
-            returns.append(r)
-            if r > best[0]:
-                best = (r, theta)
-        else:
-            fails.append(theta)
-    ok = [r for r in returns + [start_return] if math.isfinite(r)]
-    return DoorRun(
-        method="DMP+PoWER", seed=seed, trials=iterations, failures=len(fails), unrealisable=0,
-        highest_return=max(ok) if ok else math.nan, start_return=start_return, first_return=first_return,
-        failed_thetas=np.array(fails, dtype=float).reshape(-1, 2), best_theta=best[1],
-        anchor=np.asarray(demo.w, dtype=float), anchor_times=tuple(task.contact_times.tolist()),
-        rollouts=iterations + 1, seconds=time.perf_counter() - t0)
 
 
 def run_one(method: str, seed: int, iterations: int, dmp_iterations: int = 150,
@@ -370,6 +314,8 @@ def run_one(method: str, seed: int, iterations: int, dmp_iterations: int = 150,
     """One run of a Fig. 3 row (``method`` in :data:`DOOR_METHODS`) in this process's DoorTask."""
     task = _door_task(settings or {})
     if method == "DMP+PoWER":
+        from corl.experiments.door_dmp import run_dmp_power
+
         return run_dmp_power(seed, dmp_iterations, task=task)
     return run_corl(method, seed, iterations, task=task)
 
@@ -382,6 +328,7 @@ class DoorBench:
     runs: list[DoorRun]
     regions: dict[str, SafeRegion]
     table: dict[str, dict]
+    curves: dict[str, dict]  # failures and best R over trials (:func:`corl.experiments.door_curves.trial_curves`)
 
 
 def door_sweep(methods, seeds: int, iterations: int = 100, *, out: str | Path | None = None,
@@ -431,7 +378,10 @@ def door_sweep(methods, seeds: int, iterations: int = 100, *, out: str | Path | 
                 anchor_task = _door_task({**settings, "contact_times": r.anchor_times})
                 regions[digest] = safe_region(anchor_task, *grid, anchor=r.anchor, cache=out, jobs=jobs,
                                               backend=backend, progress=progress)
-    return DoorBench(runs, regions, aggregate(runs, regions, methods))
+    from corl.experiments.door_curves import trial_curves
+
+    budgets = {m: dmp_iterations if m == "DMP+PoWER" else iterations for m in methods}
+    return DoorBench(runs, regions, aggregate(runs, regions, methods), trial_curves(runs, methods, budgets))
 
 
 def _max_distance(run: DoorRun, region: SafeRegion) -> float:
@@ -460,6 +410,8 @@ def aggregate(runs: list[DoorRun], regions: dict[str, SafeRegion], methods) -> d
             "highest_return": [r.highest_return for r in rs],
             "failure_rate": [r.failures / r.trials if r.trials else 0.0 for r in rs],
             "max_dist": [_max_distance(r, region[id(r)]) for r in rs],
+            "final_return": [r.final_return for r in rs],
+            "failures": [r.failures for r in rs],
             "start_return": [r.start_return for r in rs],
             "first_return": [r.first_return for r in rs],
         }
@@ -467,13 +419,13 @@ def aggregate(runs: list[DoorRun], regions: dict[str, SafeRegion], methods) -> d
         for name, values in rows.items():
             entry[f"{name}_mean"], entry[f"{name}_std"] = _mean_std(values)
         entry.update({
-            "failures_mean": float(np.mean([r.failures for r in rs])),
             "trials_mean": float(np.mean([r.trials for r in rs])),
             "unrealisable_total": int(sum(r.unrealisable for r in rs)),
             "rollouts_mean": float(np.mean([r.rollouts for r in rs])),
             "seconds": float(sum(r.seconds for r in rs)),
             "safe_region": sorted({region[id(r)].key for r in rs}),
-            "per_seed": [{"seed": r.seed, "highest_return": r.highest_return, "failures": r.failures,
+            "per_seed": [{"seed": r.seed, "highest_return": r.highest_return, "final_return": r.final_return,
+                          "failures": r.failures,
                           "trials": r.trials, "max_dist": _max_distance(r, region[id(r)]),
                           "best_theta": None if r.best_theta is None else r.best_theta.tolist()} for r in rs],
             "paper": dict(zip(("highest_return_mean", "highest_return_std", "failure_rate_mean", "failure_rate_std",
