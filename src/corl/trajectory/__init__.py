@@ -4,9 +4,12 @@ trust-region step of Eq. 8, phase optimization (Eq. 10) and the projection of Eq
 :class:`BSpline` is the reference trajectory ``xi(w, t) = B(t) w`` (time-major ``w.reshape(P, Q)``);
 :mod:`corl.trajectory.features` builds squared features (Eq. 7, 9) and equality features (Eq. 6)
 with sparse Jacobians and stacks them into a :class:`TrajectoryProblem`. :func:`solve` minimises
-``J = r^T r`` under ``h(w) = 0`` and a trust region ``||w - center|| <= radius`` with an augmented
-Lagrangian around damped Gauss-Newton steps - banded Cholesky factorizations for long
-trajectories (:mod:`corl.trajectory.banded`); :func:`project` is Eq. 18. :mod:`corl.trajectory.phase`
+``J = r^T r`` under ``h(w) = 0`` and a trust region ``||w - center|| <= radius``, by one of two
+methods (``SolverConfig.method``): an augmented Lagrangian around damped Gauss-Newton steps, or an
+SQP / Newton-KKT step (:mod:`corl.trajectory.sqp`, :mod:`corl.trajectory.kkt`: the Schur
+complement on the constraint rows, the ball handled exactly, the augmented Lagrangian as merit
+and fallback), which ``SolverConfig.trajectory()`` picks for long trajectories. Both factorize
+banded Cholesky systems (:mod:`corl.trajectory.banded`). :func:`project` is Eq. 18. :mod:`corl.trajectory.phase`
 re-times a trajectory with fixed geometry and schedules trajectory and phase steps
 (:func:`motion_steps`). Solvers know nothing of tasks.
 """
