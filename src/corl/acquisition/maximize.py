@@ -6,7 +6,7 @@ scrambled Sobol set (m >= 3), then ``refine_rounds`` rounds of zooming: dense lo
 samples around the best ``n_keep`` candidates in boxes that shrink by ``shrink`` each round.
 
 In 1-D the default resolution is ``width / 2048`` before refinement and about ``1e-6 * width``
-after it; in 2-D ``width / 30`` and about ``2e-4 * width``: below the stopping distance used by
+after it; in 2-D ``width / 128`` and about ``1e-4 * width``: below the stopping distance used by
 PIBU (1e-3) for boxes up to a few units wide. In m >= 3 dimensions the result is a good local
 maximum near the best Sobol candidates, not a certified global one.
 """
