@@ -273,9 +273,9 @@ def _corl_settings(task, iterations: int):
 
 def true_return(outcome) -> float:
     """R of a successful door Outcome from the true mean force (``info["force_mean"]``), no sensor error."""
-    from corl.tasks.door.task import FORCE_REFERENCE
+    from corl.tasks.door.task import return_of_force
 
-    return 1.0 - float(outcome.info["force_mean"]) / FORCE_REFERENCE
+    return return_of_force(outcome.info["force_mean"])
 
 
 def run_corl(method: str, seed: int, iterations: int, *, task=None) -> DoorRun:

@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from corl.experiments.door_bench import DoorRun, _door_task
+from corl.experiments.door_bench import DoorRun, _door_task, true_return
 
 __all__ = ["DMP_BASIS", "DMP_BOX_SCALES", "DMP_POWER_STD", "DMP_OVERLAP", "run_dmp_power"]
 
@@ -31,7 +31,7 @@ def _dmp_trial(task, dmp, params):
     from corl.problem import Outcome
     from corl.tasks.door.demo import CONTROL_DT
     from corl.tasks.door.sim import rollout
-    from corl.tasks.door.task import FORCE_REFERENCE, grasp_instant
+    from corl.tasks.door.task import grasp_instant, return_of_force
 
     t, Y = dmp.reference(params, dt=CONTROL_DT, duration=task.duration)
     if not np.all(np.isfinite(Y)):
@@ -41,7 +41,7 @@ def _dmp_trial(task, dmp, params):
     if not result.success:
         return Outcome(False, None), theta
     force = task.measured_force(result.force_mean, params)  # the same sensor (and error) as CORL's trials
-    return Outcome(True, 1.0 - force / FORCE_REFERENCE, {"force_true": result.force_mean}), theta
+    return Outcome(True, return_of_force(force), {"force_mean": result.force_mean}), theta
 
 
 def run_dmp_power(seed: int, iterations: int = 150, *, task=None, box_scales: float = DMP_BOX_SCALES,
@@ -55,7 +55,6 @@ def run_dmp_power(seed: int, iterations: int = 150, *, task=None, box_scales: fl
     from corl.optimizers.power import PoWER, PoWERConfig
     from corl.policies.dmp import DMP, DMPConfig
     from corl.problem import Bounds
-    from corl.tasks.door.task import FORCE_REFERENCE
 
     t0 = time.perf_counter()
     task = task or _door_task({})
@@ -75,7 +74,7 @@ def run_dmp_power(seed: int, iterations: int = 150, *, task=None, box_scales: fl
         optimizer.tell(params, outcome)
         r = float(outcome.return_) if outcome.success else math.nan
         if outcome.success and r > best[0]:
-            best = (r, theta, 1.0 - outcome.info["force_true"] / FORCE_REFERENCE)
+            best = (r, theta, true_return(outcome))
         if k == 0:
             start_return = r
             continue

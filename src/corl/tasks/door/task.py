@@ -35,9 +35,14 @@ from corl.tasks.door.demo import CONTROL_DT, DEMO_GRASP_R, DEMO_WIDTH, grasp_rot
 from corl.trajectory.bspline import BSpline
 from corl.trajectory.features import TaskSpaceFeature, TrajectoryProblem, acceleration_feature, configuration_feature
 
-__all__ = ["DoorTask", "FORCE_REFERENCE", "grasp_instant"]
+__all__ = ["DoorTask", "FORCE_REFERENCE", "return_of_force", "grasp_instant"]
 
 FORCE_REFERENCE = 15.0  # N, about the demonstration's force: R = 1 - F / FORCE_REFERENCE (0 ~ the demonstration)
+
+
+def return_of_force(force: float) -> float:
+    """R of a successful rollout from its mean wrist force (N): ``1 - F / FORCE_REFERENCE``."""
+    return 1.0 - float(force) / FORCE_REFERENCE
 ROT_WEIGHT = 0.3        # m per rad of palm orientation error in h
 EPS_MAX = 0.1           # rad: trust region of one optimization step (Eq. 8), ||w_{i+1} - w_i||
 
@@ -242,7 +247,7 @@ class DoorTask:
         force = self.measured_force(result.force_mean, w)
         if self.force_noise > 0.0:
             info["force_measured"] = force
-        return Outcome(True, 1.0 - force / FORCE_REFERENCE, info)
+        return Outcome(True, return_of_force(force), info)
 
     def measured_force(self, force: float, key: np.ndarray) -> float:
         """What the wrist sensor reports for a true mean force (N): ``force`` plus the seeded error
