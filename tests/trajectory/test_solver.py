@@ -208,6 +208,43 @@ def test_trust_region_holds_at_every_iterate_and_matches_slsqp():
     np.testing.assert_allclose(result.w, reference, atol=1e-6)
 
 
+def test_restoration_reaches_the_tolerance_on_the_ball_from_a_stalled_point():
+    """What the solver does when L_A stalls at a violation set by the BLAS kernel's rounding
+    (3.4e-10 with OpenBLAS's Haswell kernel on the test above, 4e-11 with SkylakeX): minimum-norm
+    Newton steps on h, tangent to the ball, finish the job. Forced here on any machine by starting
+    from a point on the ball that misses h = 0 by a few times the tolerance."""
+    from corl.trajectory.solver import _Run, _restore
+
+    problem = RandomProblem(seed=3)
+    center = project(problem, np.full(6, 0.5), config=SolverConfig.precise()).w
+    radius = 0.05
+    reference = slsqp(problem, center, center=center, radius=radius)
+    tangent = np.random.default_rng(0).normal(size=6)
+    tangent -= (tangent @ (reference - center)) / np.linalg.norm(reference - center) ** 2 * (reference - center)
+    w = reference + 2e-10 * tangent / np.linalg.norm(tangent)  # off h = 0 by a few 1e-10, along the ball
+    w = center + (w - center) * (radius / np.linalg.norm(w - center))  # exactly on the ball
+    config = SolverConfig.precise()
+    run = _Run(problem, config, center, radius)
+    start = run.evaluate(w)
+    scale = 1.0 + float(np.max(np.abs(problem.equalities(w)[1]))) * np.linalg.norm(w)  # size of h's terms
+    assert config.tol_constraint < start.err <= 10 * config.tol_constraint  # a stall, not a far miss
+    restored = _restore(run, start)
+    assert restored is not None
+    assert restored.err <= config.tol_constraint
+    assert restored.err <= 1e3 * np.finfo(float).eps * scale  # Newton on h converges to rounding level
+    assert np.linalg.norm(restored.w - center) <= radius * (1 + 4 * np.finfo(float).eps)
+    assert np.linalg.norm(restored.w - w) <= 10 * start.err  # a step the size of the violation, no more
+
+
+def test_restoration_declines_a_violation_far_above_the_tolerance():
+    from corl.trajectory.solver import _Run, _restore
+
+    problem = RandomProblem(seed=3)
+    w = np.full(6, 0.5)  # max|h| of order 1: genuinely infeasible at tol 1e-10, not a stall
+    run = _Run(problem, SolverConfig.precise(), None, np.inf)
+    assert _restore(run, run.evaluate(w)) is None
+
+
 def test_start_outside_the_ball_is_moved_inside():
     center = np.array([0.3, 0.4])
     result = solve(paper_problem(), [0.9, 1.2], center=center, radius=1e-2)

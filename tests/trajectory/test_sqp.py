@@ -83,7 +83,11 @@ def test_sqp_with_active_trust_region_satisfies_kkt_and_matches_slsqp(reaching):
         method="SLSQP",
         options={"ftol": 1e-14, "maxiter": 500},
     )
-    assert reference.success, reference.message
+    # SLSQP's line search may stop with "positive directional derivative" once its ftol = 1e-14 is
+    # below what the machine's rounding allows (it does with OpenBLAS's Sandybridge kernel); the
+    # point it reached is then still the reference, provided it is feasible to the same tolerance.
+    assert reference.success or reference.status == 8, reference.message
+    assert np.abs(problem.equalities(reference.x)[0]).max() <= 1e-8
     assert result.cost == pytest.approx(reference.fun, rel=1e-7)
     np.testing.assert_allclose(result.w, reference.x, atol=1e-5)
 

@@ -96,6 +96,8 @@ __all__ = [
 
 _ACCEPT_RATIO = 1e-4  # accept a step when the actual decrease of L_A is >= this x the predicted one
 _STUCK_LIMIT = 2  # outer iterations without progress before declaring the constraints unsatisfiable
+_RESTORE_REACH = 10.0  # restoration is tried only at max|h| <= this x tol_constraint (see _restore)
+_RESTORE_STEPS = 3
 _INDEFINITE_DAMPING = 1e-6  # first damping, relative to maxdiag(H), when the curvature makes H indefinite
 _MANIFOLD_BUDGET = 60  # evaluations the manifold projection may use before project falls back on solve
 
@@ -368,6 +370,12 @@ def _augmented_lagrangian(run: _Run, pt: _Point) -> tuple[_Point, np.ndarray, fl
         stuck = stuck + 1 if still and violation >= 0.999 * previous_violation else 0
         shrunk = violation <= config.violation_decrease * previous_violation
         if stuck >= _STUCK_LIMIT or (not shrunk and mu * config.mu_growth > config.mu_max * mu0):
+            restored = _restore(run, pt)
+            if restored is not None:  # the last digits of h were out of L_A's reach, not out of the ball's
+                return restored, lam, mu, True, (
+                    f"converged: w stopped moving at max|h| = {error:.2e}, and minimum-norm Newton steps on h "
+                    f"brought it to {restored.err:.2e} <= tol_constraint = {config.tol_constraint:g}"
+                )
             return pt, lam, mu, False, _infeasible_status(pt, run, error, mu, stuck >= _STUCK_LIMIT)
         # Multiplier update: lam <- lam + 2 mu h; grow mu when ||h|| did not shrink enough.
         lam = lam + (2.0 * mu) * pt.h
@@ -378,6 +386,49 @@ def _augmented_lagrangian(run: _Run, pt: _Point) -> tuple[_Point, np.ndarray, fl
         f"not converged: max_outer_iterations = {config.max_outer_iterations} multiplier updates used, "
         f"max|h| = {pt.err:.2e}; raise max_outer_iterations or mu_growth"
     )
+
+
+def _restore(run: _Run, pt: _Point) -> _Point | None:
+    """Feasibility restoration when the augmented Lagrangian stalls close to ``h = 0``.
+
+    Near a solution on the ball's boundary the decrease of L_A that the last digits of ``h`` could
+    buy is below L_A's own rounding noise, so w stops moving at a small violation whose size
+    depends on how the machine's BLAS rounds (3e-10 with OpenBLAS's Haswell kernel, 4e-11 with
+    SkylakeX, on the same problem). Up to ``_RESTORE_STEPS`` minimum-norm Newton steps on ``h``
+    alone, ``d = -A^+ [h; 0]`` with ``A = [dh/dw; u^T]`` (``u^T d = 0`` keeps the step tangent to
+    the ball when it is active; its second-order drift ``||d||^2 / (2 radius)`` is put back by
+    placing the point on the ball), then bring ``max|h|`` below ``tol_constraint``.
+
+    Returns the restored point, or None when the violation is not small (over
+    ``_RESTORE_REACH`` x tol_constraint: a genuinely unsatisfiable constraint), ``dh/dw`` is only
+    held as its Gram matrix, or the steps do not reach the tolerance.
+    """
+    tol = run.config.tol_constraint
+    if pt.Jh is None or not pt.err <= _RESTORE_REACH * tol:
+        return None
+    best = pt
+    for _ in range(_RESTORE_STEPS):
+        Jh = best.Jh.toarray() if sp.issparse(best.Jh) else np.asarray(best.Jh, dtype=float)
+        rhs = -best.h
+        if run.center is not None:
+            u = best.w - run.center
+            if math.sqrt(_sumsq(u)) >= run.radius * (1.0 - 1e-9):  # active ball: stay tangent to it
+                Jh, rhs = np.vstack([Jh, u]), np.append(rhs, 0.0)
+        d = np.linalg.lstsq(Jh, rhs, rcond=None)[0]
+        w = best.w + d
+        if run.center is not None:
+            offset = w - run.center
+            dist = math.sqrt(_sumsq(offset))
+            if dist > run.radius:
+                w = run.center + offset * (run.radius / dist)
+        trial = run.evaluate(w)
+        if not trial.err < best.err:
+            break
+        best = trial
+        run.record(best, math.sqrt(_sumsq(d)), 0.0, 0.0)
+        if best.err <= tol:
+            return best
+    return None
 
 
 def _infeasible_status(pt: _Point, run: _Run, error: float, mu: float, stuck: bool) -> str:
