@@ -125,3 +125,17 @@ def test_import_corl_stays_light():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
     assert callable(corl.optimize) and callable(corl.make_optimizer)
+
+
+def test_the_readme_example_prints_what_the_readme_says(capsys):
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    section = readme.split("## The safe optimizer on its own", 1)[1]
+    code = section.split("```python\n", 1)[1].split("```", 1)[0]
+    expected = code.strip().splitlines()[-1].lstrip("# ").split()
+    exec(compile(code, "README.md", "exec"), {})
+    printed = capsys.readouterr().out.replace("[", "").replace("]", "").split()
+    theta, ret, reason, trials, failures = printed
+    assert f"{float(theta):.4f}" == expected[0].strip("[]") and f"{float(ret):.5f}" == expected[1]
+    assert [reason, trials, failures] == expected[2:]

@@ -13,14 +13,15 @@ In m >= 3 dimensions no grid is affordable, and PIBU's boundary term lives on a 
 thousandths of the box thick (p in 0.45..0.55) around the estimated safe set: a fraction 1e-3 of
 a 4-D box or less, which 2,048 random points often miss. Two things find it there:
 
-* more Sobol points (``samples_nd``, 8,192);
+* more Sobol points (``samples_nd``, 4,096);
 * *boundary seeding*: an acquisition that knows where its thin band is says so with a method
   ``boundary_level(X) -> (s,)``, a continuous function that is positive on the inner side, negative
-  outside and zero inside the band (PIBU: ``p - 0.5``). The ``boundary_pairs`` candidates closest
-  to the zero level are each paired with their nearest candidate on the other side, and each
+  outside and zero inside the band (PIBU: ``p - 0.5``). The level is read at the first
+  ``level_samples`` Sobol points and the sampled points; the ``boundary_pairs`` of them closest
+  to the zero level are each paired with their nearest point on the other side, and each
   segment is cut at the level crossing by ``boundary_rounds`` rounds of quartering (4^-6 of the
   segment). Those crossing points join the candidates before the zoom. The band is then found
-  whenever one candidate lies on each side of it, whatever its thickness.
+  whenever one of those points lies on each side of it, whatever its thickness.
 
 1-D and 2-D are unchanged by either (the paper's tables come from them). In m >= 3 the result is a
 good local maximum near the best candidates, not a certified global one.
@@ -49,23 +50,24 @@ __all__ = ["MaximizerConfig", "maximize"]
 class MaximizerConfig:
     grid_1d: int = 2049
     grid_2d: int = 129
-    samples_nd: int = 8192
+    samples_nd: int = 4096
     n_keep: int = 4
     refine_1d: int = 33
     refine_2d: int = 9
     refine_nd: int = 64
     refine_rounds: int = 3
     shrink: float = 0.1
-    boundary_pairs: int = 256  # m >= 3: segments cut at the acquisition's boundary level (0: off)
+    boundary_pairs: int = 128  # m >= 3: segments cut at the acquisition's boundary level (0: off)
     boundary_rounds: int = 6  # quartering rounds per segment: the crossing to 4^-6 of its length
+    level_samples: int = 1024  # the level is read at this many of the Sobol points (and the data)
 
     def __post_init__(self) -> None:
         sizes = (self.grid_1d, self.grid_2d, self.samples_nd, self.n_keep, self.refine_1d, self.refine_2d,
                  self.refine_nd)
         if min(sizes) < 2:
             raise InputError("maximizer sizes must be at least 2")
-        if self.boundary_pairs < 0 or self.boundary_rounds < 1:
-            raise InputError("boundary_pairs must be >= 0 and boundary_rounds >= 1")
+        if self.boundary_pairs < 0 or self.boundary_rounds < 1 or self.level_samples < 2:
+            raise InputError("boundary_pairs must be >= 0, boundary_rounds >= 1 and level_samples >= 2")
         if not 0.0 < self.shrink < 1.0 or self.refine_rounds < 0:
             raise InputError("shrink must lie in (0, 1) and refine_rounds be >= 0")
 
@@ -151,11 +153,13 @@ def maximize(
     """
     m = bounds.dim
     U, spacing = _initial_candidates(m, config, rng)
+    sobol = U[: config.level_samples]
     if extra is not None and len(extra):
-        U = np.vstack([U, bounds.to_unit(np.asarray(extra, dtype=float).reshape(-1, m))])
+        E = bounds.to_unit(np.asarray(extra, dtype=float).reshape(-1, m))
+        U, sobol = np.vstack([U, E]), np.vstack([sobol, E])
     level = getattr(acquisition, "boundary_level", None)
     if m >= 3 and config.boundary_pairs > 0 and callable(level):
-        U = np.vstack([U, _boundary_seeds(level, U, bounds, config)])
+        U = np.vstack([U, _boundary_seeds(level, sobol, bounds, config)])
     values = np.asarray(acquisition(bounds.from_unit(U)), dtype=float)
     values = np.where(np.isfinite(values), values, -np.inf)
     half = spacing.copy()
