@@ -205,11 +205,13 @@ def test_an_all_failure_history_stops_a_safe_method_with_a_reason_and_a_success_
     s = build(kind, name, budget=20)
     for x in ([0.1, 0.9], [0.5, 0.8], [0.9, 0.95]):
         s.inner.tell(np.array(x), Outcome(False))
+    assert np.array_equal(s.ask(), START)  # no success known: the start comes first
+    s.inner.tell(START, Outcome(False))  # and fails too
     if name in SAFE:
         assert s.inner.done and s.inner.stop_reason is StopReason.NO_SAFE_POINT
         with pytest.raises(StateError, match="succeed"):
             s.inner.ask()
-        s.inner.tell(START, f(START))  # a success: the method decides again
+        s.inner.tell(np.array([0.2, 0.2]), f(np.array([0.2, 0.2])))  # a success: the method decides again
     assert not s.inner.done and s.inner.stop_reason is None
     assert BOX.contains(s.ask())
 

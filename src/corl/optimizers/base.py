@@ -89,8 +89,9 @@ class BlackBoxOptimizer(ABC):
     bounds : the search box, (m,) each.
     max_evals : the budget: points told in all (start and data told up front included), >= 1.
     name : used in messages.
-    start : (m,) inside ``bounds``, or None. When given, it is the first point asked while no
-        data has been told (the user's known-safe start); None lets the method choose.
+    start : (m,) inside ``bounds``, or None. When given, it is asked first, before the method's
+        own proposals, unless a success is already known or it was told (the user's known-safe
+        start); None lets the method choose.
 
     Attributes
     ----------
@@ -110,6 +111,7 @@ class BlackBoxOptimizer(ABC):
         self.max_evals = int(max_evals)
         self.name = name
         self.start = None if start is None else check_theta(start, bounds, task=name).copy()
+        self._start_open = start is not None  # the start is still to be tried
         m = bounds.dim
         self.X_ = np.empty((0, m))
         self.success_ = np.empty(0, dtype=bool)
@@ -141,6 +143,8 @@ class BlackBoxOptimizer(ABC):
         self.X_ = np.vstack([self.X_, x])
         self.success_ = np.append(self.success_, outcome.success)
         self.returns_ = np.append(self.returns_, r)
+        if self._start_open and self._answers(x, self.start):
+            self._start_open = False
         answered = self._proposal is not None and self._answers(x, self._proposal)
         if answered or not self._handed_out or self.n_evals >= self.max_evals:
             if self._proposal is not None and not answered:
@@ -180,10 +184,10 @@ class BlackBoxOptimizer(ABC):
             return
         if self.n_evals >= self.max_evals:
             decision = StopReason.BUDGET
+        elif self._start_open and not np.any(self.success_):
+            decision = self.start
         elif self.needs_success and self.n_evals and not np.any(self.success_):
             decision = StopReason.NO_SAFE_POINT  # checked before any model is fitted
-        elif self.n_evals == 0 and self.start is not None:
-            decision = self.start
         else:
             decision = self._propose()
         if decision is None:
