@@ -124,3 +124,23 @@ def test_configs_validate():
         SALConfig(alpha=1.5)
     with pytest.raises(ValueError):
         BOConfig(stop_rule="sometimes")
+
+
+def test_a_subclass_whose_propose_returns_none_stops_converged():
+    # the hook subclasses of the BO base use: None from _propose means "stop", never an exception
+    from corl.optimizers.bo import _BayesOpt
+
+    class StopsAtThree(_BayesOpt):
+        def _acquisition(self):
+            return None
+
+        def _propose(self):
+            return None if self.n_evals >= 3 else super()._propose()
+
+    opt = StopsAtThree(BOUNDS, BOConfig(), max_evals=10, seed=0, name="three")
+    asked = 0
+    while not opt.done:
+        x = opt.ask()
+        opt.tell(x, evaluate(x))
+        asked += 1
+    assert asked == 3 and opt.stop_reason is StopReason.CONVERGED
