@@ -45,7 +45,7 @@ _LAZY = {  # public name -> module that defines it
     "Outcome": "corl.problem",
 }
 
-__all__ = sorted(_LAZY)
+# no __all__: pdoc follows a package's __all__, and corl's reference walks every submodule
 
 
 def __getattr__(name: str):
