@@ -89,7 +89,7 @@ class LearnerSubject:
         return len(self.inner.history)
 
 
-SUBJECTS = [("optimizer", n) for n in OPTIMIZERS] + [("learner", n) for n in ("CORL+PIBU", "CORL+CMA", "CMA", "PoWER")]
+SUBJECTS = [("optimizer", n) for n in OPTIMIZERS] + [("learner", n) for n in ("CORL+PIBU", "CORL+CMA", "PIBU", "CMA", "PoWER")]
 
 
 def build(kind: str, name: str, budget: int = 6):
@@ -132,6 +132,26 @@ def test_the_budget_is_respected_exactly(subject_spec):
         assert s.trials() == 5
     if subject_spec[1] in ("CMA", "PoWER", "PIBU(budget)", "CORL+CMA"):  # no stopping rule fires this early
         assert s.inner.stop_reason is StopReason.BUDGET and s.trials() == 5
+
+
+def test_each_decision_is_made_once_per_trial(subject_spec):
+    # done, stop_reason and ask share one decision: no second GP fit for the same data
+    kind, name = subject_spec
+    if kind != "optimizer":
+        pytest.skip("the learners' optimizers are counted through the optimizer subjects")
+    s = build(kind, name, budget=8)
+    calls, propose = [], s.inner._propose
+    s.inner._propose = lambda: calls.append(1) or propose()
+    asks = 0
+    while not s.inner.done:
+        assert s.inner.stop_reason is None and not s.inner.done
+        x = s.ask()
+        assert np.array_equal(s.ask(), x)
+        s.answer(x)
+        asks += 1
+    s.inner.stop_reason, s.inner.done  # read again: still no new decision
+    # one per trial after the start (the start needs none), one more for a stop the method decides
+    assert len(calls) == asks - 1 + (s.inner.stop_reason is not StopReason.BUDGET)
 
 
 def test_ask_twice_returns_the_pending_point(subject_spec):
