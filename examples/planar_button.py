@@ -81,7 +81,7 @@ class PlanarButtonTask:
 
         return MethodSettings(regression=RegressionConfig(lengthscale=0.015, signal_std=0.5, noise_std=0.01),
                               classifier=ClassifierConfig(lengthscale=0.01, signal_std=10.0, prior_mean=-7.0),
-                              corl=CORLConfig(eps_max=0.2, eps_w=1e-4), rl_budget=30)
+                              corl=CORLConfig(eps_max=0.2, eps_w=1e-4, max_rl_trials=30))
 
     def cost_residuals(self, w):
         return self._cost.residuals(w)

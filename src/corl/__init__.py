@@ -20,5 +20,41 @@ The packages, from the lowest layer up:
 * :mod:`corl.experiments`, :mod:`corl.progress`, :mod:`corl.cli`: benchmarks, reports and the
   ``corl`` command.
 
+The safe optimizer on its own (no trajectory, just a box and a start), loaded on first use so
+that ``import corl`` stays light::
+
+    result = corl.optimize(f, (lower, upper), start, method="PIBU", budget=40)
+    opt = corl.make_optimizer("PIBU", (lower, upper), start, budget=40)   # ask / tell / done / stop_reason
+
 ``docs/index.md`` in the repository says how to build this reference (``make docs``).
 """
+
+from __future__ import annotations
+
+import importlib
+
+_LAZY = {  # public name -> module that defines it
+    "optimize": "corl.loop",
+    "OptimizeResult": "corl.loop",
+    "make_optimizer": "corl.optimizers.registry",
+    "register_optimizer": "corl.optimizers.registry",
+    "OptimizerSettings": "corl.optimizers.registry",
+    "OPTIMIZERS": "corl.optimizers.registry",
+    "StopReason": "corl.optimizers.base",
+    "Bounds": "corl.problem",
+    "Outcome": "corl.problem",
+}
+
+# no __all__: pdoc follows a package's __all__, and corl's reference walks every submodule
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'corl' has no attribute '{name}'")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))

@@ -18,7 +18,7 @@ from corl.errors import InputError, StateError
 from corl.loop import drive
 from corl.learner import Best, cost_of
 from corl.numerics import as_vector
-from corl.optimizers.base import BlackBoxOptimizer
+from corl.optimizers.base import BlackBoxOptimizer, StopReason
 from corl.problem import Outcome, Proposal, Task
 
 __all__ = ["DirectSearch"]
@@ -27,8 +27,10 @@ __all__ = ["DirectSearch"]
 class DirectSearch:
     """Drive a :class:`BlackBoxOptimizer` over ``w`` with the single objective ``o(w)``.
 
-    Trial 0 is the demonstration ``w0``; it is told to the optimizer like any other trial.
-    The interface matches :class:`corl.CORL`: ``ask``, ``tell``, ``done``, ``best``, ``run``.
+    Trial 0 is the demonstration ``w0``; it is told to the optimizer like any other trial, so the
+    optimizer's ``max_evals`` is the budget of the whole run, the demonstration included.
+    The interface matches :class:`corl.CORL`: ``ask``, ``tell``, ``done``, ``stop_reason``,
+    ``best``, ``run``; ``stop_reason`` is the optimizer's.
     """
 
     def __init__(self, task: Task, optimizer: BlackBoxOptimizer, *, failure_cost: float = 15.0) -> None:
@@ -74,6 +76,11 @@ class DirectSearch:
     @property
     def done(self) -> bool:
         return self._pending is None and bool(self.history) and self.optimizer.done
+
+    @property
+    def stop_reason(self) -> StopReason | None:
+        """Why the search stopped (the optimizer's :class:`StopReason`), or None while it runs."""
+        return self.optimizer.stop_reason if self.done else None
 
     @property
     def best(self) -> Best | None:

@@ -41,7 +41,7 @@ import numpy as np
 from corl.errors import DemonstrationFailedError, InputError, StateError
 from corl.loop import drive
 from corl.numerics import as_vector
-from corl.optimizers.base import BlackBoxOptimizer
+from corl.optimizers.base import BlackBoxOptimizer, StopReason
 from corl.problem import Bounds, Outcome, Proposal, Task, check_theta
 from corl.trajectory.solver import FunctionProblem, SolverConfig, project, solve
 
@@ -60,7 +60,7 @@ class CORLConfig:
     theta_step_stop: bool = False
     max_rounds: int = 10
     max_optimization_steps: int = 5000
-    max_rl_trials: int = 100
+    max_rl_trials: int = 100  # black-box trials of step 2 over the whole run, all rounds (see CORL)
     rollout_every_step: bool = True
     reuse_data: bool = True
     max_phase_steps: int = 0  # phase steps (Eq. 10) after the trajectory steps; needs task.spline
@@ -99,6 +99,19 @@ class CORL:
         method of step 2 (PIBU, UCB, SAL, CMA-ES, PoWER) afresh in every round.
     config : :class:`CORLConfig`.
     seed : seeds the black-box methods; same seed and outcomes give the same proposals.
+
+    Notes
+    -----
+    The budget: ``config.max_rl_trials`` is the number of black-box trials (step 2's thetas)
+    over the whole run, all rounds together. The start theta* of a round is not one of them (its
+    return comes from step 1); a theta whose Eq. 18 projection stays infeasible is (the method is
+    told a failure). The optimizer the factory builds is not trusted to count: the learner stops
+    step 2 at the budget itself (:attr:`rl_trials`). Step 1's rollouts are bounded by
+    ``max_optimization_steps`` per round and ``max_rounds``.
+
+    :attr:`stop_reason` is ``BUDGET`` once the black-box budget is spent, ``CONVERGED`` when
+    (w*, theta*) stopped changing, ``MAX_ROUNDS`` after ``max_rounds`` rounds, ``NO_SAFE_POINT``
+    when the demonstration failed, ``ERROR`` after any other exception; None while the run goes on.
     """
 
     def __init__(self, task: Task, optimizer_factory: OptimizerFactory, config: CORLConfig = CORLConfig(),
@@ -110,7 +123,9 @@ class CORL:
         self.history: list[tuple[Proposal, Outcome]] = []
         self.J_history: list[tuple[int, float]] = []  # (trial index, J(w)) of every rolled-out w
         self.unrealisable = 0
+        self.rl_trials = 0  # black-box trials so far (the budget max_rl_trials counts these)
         self.rounds = 0
+        self._end: StopReason | None = None
         self.optimizers: list[BlackBoxOptimizer] = []
         self._best: Best | None = None
         self._pending: Proposal | None = None
@@ -155,6 +170,15 @@ class CORL:
         return self._finished
 
     @property
+    def stop_reason(self) -> StopReason | None:
+        """Why Algorithm 1 stopped (see the class notes), or None while it runs."""
+        if not self._finished:
+            return None
+        if self.rl_trials >= self.config.max_rl_trials:
+            return StopReason.BUDGET
+        return self._end or StopReason.ERROR  # finished without a decision: an exception ended it
+
+    @property
     def best(self) -> Best | None:
         """The best successful policy ``(w*, theta*)`` with its return and J, or None."""
         return self._best
@@ -177,6 +201,7 @@ class CORL:
         theta0 = check_theta(demo.theta, bounds, task=task.name)
         outcome = yield self._proposal(w0, theta0, "demonstration")
         if not outcome.success:
+            self._end = StopReason.NO_SAFE_POINT
             raise DemonstrationFailedError(
                 f"the demonstration of task '{task.name}' failed (S(theta0) = 0, info {dict(outcome.info)}); "
                 "Algorithm 1 needs a successful demonstration: re-record it or check the success criterion"
@@ -196,7 +221,10 @@ class CORL:
             w_star, theta_star, r_star, data = yield from self._reinforcement(w_star, theta_star, r_star, data)
             # Alg. 1: until no change in policy parameter (w*, theta*)
             if np.linalg.norm(w_star - w_before) < cfg.eps_w and np.array_equal(theta_star, theta_before):
+                self._end = StopReason.CONVERGED
                 break
+        else:
+            self._end = StopReason.MAX_ROUNDS
 
     def _constraint(self, theta: np.ndarray):
         task = self.task
@@ -323,13 +351,10 @@ class CORL:
             optimizer.tell(theta, outcome)
         candidates: list[tuple[np.ndarray, np.ndarray, float]] = []
         previous = theta_star
-        for _ in range(cfg.max_rl_trials):
-            if optimizer.done:
-                break
-            try:
-                theta = optimizer.ask()  # theta(d+1) = argmax_theta a(theta, D)
-            except StateError:
-                break
+        # the budget spans the run: max_rl_trials black-box trials over all rounds (CORLConfig)
+        while self.rl_trials < cfg.max_rl_trials and not optimizer.done:
+            theta = optimizer.ask()  # theta(d+1) = argmax_theta a(theta, D), decided when done was read
+            self.rl_trials += 1
             result = self._realise(w_star, theta_star, theta)
             if not self._feasible(result):
                 self.unrealisable += 1

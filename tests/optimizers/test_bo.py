@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from corl.errors import InputError, StateError
+from corl.optimizers.base import StopReason
 from corl.optimizers.bo import BOConfig, PIBUOptimizer, StopRule, UCBOptimizer
 from corl.optimizers.sal import SALConfig, SALOptimizer
 from corl.problem import Bounds, Outcome
@@ -25,11 +26,8 @@ def evaluate(theta, with_distance=False):
 
 def drive(opt, start, budget=60, with_distance=False):
     opt.tell(np.array([start]), evaluate([start], with_distance))
-    while not opt.done and opt.n_evals < budget:
-        try:
-            x = opt.ask()
-        except StateError:
-            break
+    while not opt.done and opt.n_evals < budget:  # the contract: no exception when the method stops
+        x = opt.ask()
         opt.tell(x, evaluate(x, with_distance))
     return opt
 
@@ -48,8 +46,21 @@ def test_pibu_finds_the_optimum_with_few_near_boundary_failures(start):
 
 def test_pibu_stop_rule_near_sampled():
     opt = drive(PIBUOptimizer(BOUNDS, seed=0), 0.5)
-    assert opt.done
-    with pytest.raises(StateError):
+    assert opt.done and opt.stop_reason is StopReason.CONVERGED
+    with pytest.raises(StateError, match="converged"):
+        opt.ask()
+
+
+def test_pibu_stops_with_no_improvement_when_its_acquisition_is_zero():
+    # one success hemmed in by failures every 0.15: no inner region (p < 0.55 even there) and no
+    # uncertain stretch of boundary left
+    opt = PIBUOptimizer(BOUNDS, seed=0)
+    opt.tell(np.array([0.0]), Outcome(True, 1.0))
+    for x in np.linspace(-3.0, 3.0, 41):
+        if x != 0.0:
+            opt.tell(np.array([x]), Outcome(False))
+    assert opt.done and opt.stop_reason is StopReason.NO_IMPROVEMENT
+    with pytest.raises(StateError, match="no point is worth a trial"):
         opt.ask()
 
 
@@ -113,3 +124,23 @@ def test_configs_validate():
         SALConfig(alpha=1.5)
     with pytest.raises(ValueError):
         BOConfig(stop_rule="sometimes")
+
+
+def test_a_subclass_whose_propose_returns_none_stops_converged():
+    # the hook subclasses of the BO base use: None from _propose means "stop", never an exception
+    from corl.optimizers.bo import _BayesOpt
+
+    class StopsAtThree(_BayesOpt):
+        def _acquisition(self):
+            return None
+
+        def _propose(self):
+            return None if self.n_evals >= 3 else super()._propose()
+
+    opt = StopsAtThree(BOUNDS, BOConfig(), max_evals=10, seed=0, name="three")
+    asked = 0
+    while not opt.done:
+        x = opt.ask()
+        opt.tell(x, evaluate(x))
+        asked += 1
+    assert asked == 3 and opt.stop_reason is StopReason.CONVERGED

@@ -14,7 +14,7 @@ from corl.problem import Bounds, Outcome
 def test_converges_on_2d_quadratic_and_stops_at_budget():
     opt = CMAES(UNIT2, [0.8, 0.2], max_evals=200, seed=0)
     run(opt, quadratic(C2))
-    assert opt.n_evals == 200 and opt.done
+    assert opt.n_evals == 200 and opt.done and opt.stop_reason.value == "budget"
     x_best, r_best = opt.best
     assert np.linalg.norm(x_best - C2) < 0.05
     assert np.linalg.norm(opt.mean_ - C2) < 0.05
@@ -81,6 +81,7 @@ def test_flat_fitness_stops_only_when_asked_for():
     stopping = CMAES(UNIT2, [0.5, 0.5], CMAESConfig(popsize=6, flat_fitness_stops=True), max_evals=200, seed=0)
     run(stopping, always_fails)
     assert stopping.done and stopping.n_evals < 30  # pycma reads the plateau as convergence
+    assert stopping.stop_reason.value == "converged"
     with pytest.raises(StateError):
         stopping.ask()
     patient = CMAES(UNIT2, [0.5, 0.5], CMAESConfig(popsize=6), max_evals=200, seed=0)

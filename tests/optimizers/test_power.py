@@ -74,7 +74,7 @@ def test_exploration_decays_and_tolerance_stops():
     opt = PoWER(UNIT2, [0.5, 0.5], PoWERConfig(std=0.1, decay=0.5, tol_std=0.01), max_evals=100, seed=4)
     run(opt, quadratic(C2))
     assert opt.n_evals == 4  # 0.1 * 0.5**4 < 0.01
-    assert opt.done
+    assert opt.done and opt.stop_reason.value == "converged"
     with pytest.raises(StateError):
         opt.ask()
 

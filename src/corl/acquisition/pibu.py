@@ -111,3 +111,14 @@ class PIBU:
     def __call__(self, X: np.ndarray) -> np.ndarray:
         """Acquisition values at candidates ``X`` (s, m) -> (s,)."""
         return self.parts(X)["value"]
+
+    def boundary_level(self, X: np.ndarray) -> np.ndarray:
+        """Where the boundary band lies, for the maximiser: (s, m) -> (s,), zero mid-band, > 0 inside.
+
+        ``p - (band_low + band_high) / 2`` (authors) or the latent mean ``g`` (literal).
+        """
+        g, g_var = self.classifier.predict_latent(X)
+        cfg = self.config
+        if cfg.variant is PIBUVariant.AUTHORS:
+            return expected_sigmoid(g, g_var) - 0.5 * (cfg.band_low + cfg.band_high)
+        return g

@@ -261,14 +261,9 @@ class DoorRun:
 
 
 def _corl_settings(task, iterations: int):
-    """The task's Sec. VIII-B settings with one round and ``iterations`` black-box trials.
-
-    The black-box method's budget counts every point told to it; D starts with ``(theta0, R)``,
-    hence ``iterations + 1``.
-    """
+    """The task's Sec. VIII-B settings with one round and ``iterations`` black-box trials (``max_rl_trials``)."""
     preset = task.method_settings()
-    corl = replace(preset.corl, max_rounds=1, max_rl_trials=iterations)
-    return replace(preset, corl=corl, rl_budget=iterations + 1)
+    return replace(preset, corl=replace(preset.corl, max_rounds=1, max_rl_trials=iterations))
 
 
 def true_return(outcome) -> float:

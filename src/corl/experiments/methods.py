@@ -3,26 +3,26 @@
 Names are exactly those of the paper's table. ``CORL+PIBU(literal)`` is the ablation that reads
 Eq. 17 word for word (see :mod:`corl.acquisition.pibu`).
 
-Budgets (the paper does not state them): methods over ``w`` get ``direct_budget`` trials
-(demonstration included); the black-box step of CORL gets at most ``rl_budget`` trials per round.
+Budgets (the paper does not state them), one number per kind of method, each counting black-box
+trials: a method over ``w`` gets ``direct_budget`` trials in all, the demonstration included; CORL
+gets ``corl.max_rl_trials`` black-box trials (step 2) over the whole run, all rounds together (the
+start theta* is step 1's rollout, not one of them; see :class:`corl.learner.CORL`). The synthetic
+presets, 99 and 49, are what the runs behind the paper tables used: the old accounting counted the
+demonstration or the start theta* as one trial of a budget of 100 or 50.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 
-from corl.acquisition import PIBUConfig, PIBUVariant
 from corl.direct import DirectSearch
 from corl.errors import InputError
 from corl.learner import CORL, CORLConfig
-from corl.optimizers.bo import BOConfig, PIBUOptimizer, StopRule, UCBOptimizer
-from corl.optimizers.cmaes import CMAES, CMAESConfig
 from corl.optimizers.gpconfig import SYNTHETIC_CLASSIFIER, SYNTHETIC_REGRESSION, ClassifierConfig, RegressionConfig
-from corl.optimizers.power import PoWER, PoWERConfig
-from corl.optimizers.sal import SALConfig, SALOptimizer
+from corl.optimizers.registry import OPTIMIZERS, OptimizerSettings
 from corl.problem import Task
 
 __all__ = ["MethodSettings", "METHODS", "PAPER_FIG1", "make_method"]
@@ -46,9 +46,8 @@ class MethodSettings:
 
     regression: RegressionConfig = SYNTHETIC_REGRESSION
     classifier: ClassifierConfig = SYNTHETIC_CLASSIFIER
-    corl: CORLConfig = field(default_factory=CORLConfig)
-    direct_budget: int = 100
-    rl_budget: int = 50
+    corl: CORLConfig = field(default_factory=lambda: CORLConfig(max_rl_trials=49))  # the budget of CORL
+    direct_budget: int = 99  # trials of a method over w, the demonstration included
     failure_return: float = -15.0
     ucb_kappa: float = 2.0
     cma_sigma0: float = 0.3
@@ -57,33 +56,28 @@ class MethodSettings:
     # that "near a sampled point" means the same thing along every axis.
     theta_scale: tuple[float, ...] | None = None
 
-    def bo(self, stop_rule: StopRule = StopRule.NEAR_SAMPLED, stop_distance: float = 1e-3) -> BOConfig:
-        return BOConfig(self.regression, self.classifier, stop_rule=stop_rule, stop_distance=stop_distance,
-                        distance_scale=self.theta_scale)
+    def __post_init__(self) -> None:
+        if isinstance(self.direct_budget, bool) or int(self.direct_budget) != self.direct_budget or self.direct_budget < 2:
+            raise InputError(f"direct_budget (trials of a method over w, the demonstration included) must be an "
+                             f"integer >= 2, got {self.direct_budget!r}")
+
+    def optimizer_settings(self) -> OptimizerSettings:
+        """The black-box methods' settings (:mod:`corl.optimizers.registry`) in the task's units."""
+        return OptimizerSettings(regression=self.regression, classifier=self.classifier,
+                                 failure_return=self.failure_return, ucb_kappa=self.ucb_kappa,
+                                 cma_sigma0=self.cma_sigma0, stop_distance=1e-3, step_distance=self.corl.eps_theta,
+                                 distance_scale=self.theta_scale)
+
+
+_UNCOUNTED = 2**62  # CORL counts its black-box trials itself; the optimizer inside never stops on a budget
 
 
 def _factory(name: str, s: MethodSettings) -> Callable:
-    """``(bounds, x0, rng) -> BlackBoxOptimizer`` for the black-box part of a method."""
-    eps_theta = s.corl.eps_theta
-    if name == "PIBU":
-        return lambda b, x0, rng, n: PIBUOptimizer(b, s.bo(), max_evals=n, seed=rng)
-    if name == "PIBU(budget)":  # over w: the 1e-3 stopping rule fires before the optimum is pinned down
-        return lambda b, x0, rng, n: PIBUOptimizer(b, s.bo(StopRule.BUDGET), max_evals=n, seed=rng)
-    if name == "PIBU(literal)":
-        return lambda b, x0, rng, n: PIBUOptimizer(b, s.bo(StopRule.SMALL_STEP, eps_theta),
-                                                   PIBUConfig(variant=PIBUVariant.LITERAL), max_evals=n, seed=rng)
-    if name == "UCB":
-        return lambda b, x0, rng, n: UCBOptimizer(b, s.bo(StopRule.SMALL_STEP, eps_theta), kappa=s.ucb_kappa,
-                                                  failure_return=s.failure_return, max_evals=n, seed=rng)
-    if name == "SAL":
-        cfg = SALConfig(regression=s.regression)
-        return lambda b, x0, rng, n: SALOptimizer(b, cfg, max_evals=n, seed=rng)
-    if name == "CMA":
-        return lambda b, x0, rng, n: CMAES(b, x0, CMAESConfig(sigma0=s.cma_sigma0), failure_return=s.failure_return,
-                                           max_evals=n, seed=rng)
-    if name == "PoWER":
-        return lambda b, x0, rng, n: PoWER(b, x0, PoWERConfig(), failure_return=s.failure_return, max_evals=n, seed=rng)
-    raise InputError(f"unknown black-box method '{name}'; choose one of PIBU, UCB, SAL, CMA, PoWER")
+    """``(bounds, x0, rng, budget) -> BlackBoxOptimizer`` for the black-box part of a method (the registry's)."""
+    if name not in OPTIMIZERS:
+        raise InputError(f"unknown black-box method '{name}'; choose one of {', '.join(OPTIMIZERS)}")
+    build, settings = OPTIMIZERS[name], s.optimizer_settings()
+    return lambda b, x0, rng, n: build(b, x0, budget=n, rng=rng, settings=settings)
 
 
 def make_method(name: str, task: Task, *, seed: int = 0, settings: MethodSettings | None = None):
@@ -97,9 +91,7 @@ def make_method(name: str, task: Task, *, seed: int = 0, settings: MethodSetting
         settings = preset() if callable(preset) else MethodSettings()
     if name.startswith("CORL+"):
         inner = _factory(name[len("CORL+"):], settings)
-        budget = settings.corl.max_rl_trials if settings.rl_budget is None else settings.rl_budget
-        corl_cfg = replace(settings.corl, max_rl_trials=budget)
-        return CORL(task, lambda b, x0, rng: inner(b, x0, rng, budget), corl_cfg, seed=seed)
+        return CORL(task, lambda b, x0, rng: inner(b, x0, rng, _UNCOUNTED), settings.corl, seed=seed)
     if name not in ("PIBU", "UCB", "CMA", "PoWER"):
         raise InputError(f"unknown method '{name}'; choose one of {', '.join(METHODS)}")
     if task.w_bounds is None:
@@ -107,5 +99,5 @@ def make_method(name: str, task: Task, *, seed: int = 0, settings: MethodSetting
     rng = np.random.default_rng([seed, 12345])
     w0 = np.asarray(task.demonstration().w, dtype=float)
     inner = "PIBU(budget)" if name == "PIBU" else name
-    optimizer = _factory(inner, settings)(task.w_bounds, w0, rng, settings.direct_budget - 1)
+    optimizer = _factory(inner, settings)(task.w_bounds, w0, rng, settings.direct_budget)
     return DirectSearch(task, optimizer, failure_cost=-settings.failure_return)

@@ -1,19 +1,61 @@
-"""The one interface every black-box optimizer speaks: ``ask``, ``tell``, ``done``, ``best``.
+"""The one interface every black-box optimizer speaks: ``ask``, ``tell``, ``done``, ``stop_reason``, ``best``.
 
 PIBU, UCB, SAL, CMA-ES and PoWER all implement it, over ``theta`` inside CORL or over the full
 ``w`` as baselines. The CORL learner speaks the same protocol with :class:`corl.problem.Proposal`.
+
+The stopping contract
+---------------------
+* The next point, or the decision to stop, is worked out once, lazily: by whichever of
+  :attr:`done`, :attr:`stop_reason` or :meth:`ask` is read first after a ``tell``, and cached.
+  ``ask`` returns the cached point, so ``while not opt.done: x = opt.ask(); opt.tell(x, f(x))``
+  fits each GP once per trial and never sees an exception when the method converges.
+* :attr:`stop_reason` (a :class:`StopReason`, None while running) says why it stopped.
+  ``ask`` after a stop is a misuse and raises :class:`~corl.errors.StateError`.
+* ``max_evals`` counts every point told (the start and any data told up front included).
+* A told point *answers* the proposal when every coordinate lies within
+  ``answer_tolerance`` (0.5 %) of the box width of it: a robot operator who types the asked theta
+  with four decimals answers it. A proposal handed out by ``ask`` and not answered stays pending
+  (a trial is never silently skipped); one worked out but not yet handed out is dropped when
+  other data arrives, and worked out again from all the data.
+* Every stop but the budget is a function of the data: a ``tell`` after a stop lets the method
+  decide again (e.g. a successful point told after an all-failure history).
 """
 
 from __future__ import annotations
 
+import enum
 from abc import ABC, abstractmethod
 
 import numpy as np
 
-from corl.errors import StateError
+from corl.errors import InputError, StateError
 from corl.problem import Bounds, Outcome, check_theta
 
-__all__ = ["BlackBoxOptimizer", "score_of"]
+__all__ = ["BlackBoxOptimizer", "StopReason", "as_outcome", "score_of", "ANSWER_TOLERANCE"]
+
+ANSWER_TOLERANCE = 5e-3  # a told point answers the proposal within this fraction of the box width
+
+
+class StopReason(str, enum.Enum):
+    """Why an optimizer or a learner stopped (its ``stop_reason``; None while it runs)."""
+
+    BUDGET = "budget"  # the trial budget is spent
+    CONVERGED = "converged"  # the method's own stopping rule (near a sampled point, small step, tolx, ...)
+    NO_IMPROVEMENT = "no_improvement"  # no point is worth a trial: the acquisition is zero / nothing is safe enough
+    NO_SAFE_POINT = "no_safe_point"  # no successful trial yet: a safe method has nothing to expand from
+    MAX_ROUNDS = "max_rounds"  # CORL: Algorithm 1 ran its ``max_rounds`` rounds
+    ERROR = "error"  # a learner: an exception ended the run (it was raised to the caller)
+
+
+_EXPLAIN = {
+    StopReason.BUDGET: "its trial budget is spent",
+    StopReason.CONVERGED: "its stopping rule fired (the next point would repeat a sampled one)",
+    StopReason.NO_IMPROVEMENT: "no point is worth a trial (no likely improvement, no uncertain safe boundary)",
+    StopReason.NO_SAFE_POINT: "every trial told so far failed, so a safe method has nothing to expand from; "
+                              "tell a point known to succeed (e.g. the start) and ask again",
+    StopReason.MAX_ROUNDS: "Algorithm 1 ran all its rounds",
+    StopReason.ERROR: "an exception ended the run",
+}
 
 
 def score_of(outcome: Outcome, failure_return: float) -> float:
@@ -21,62 +63,107 @@ def score_of(outcome: Outcome, failure_return: float) -> float:
     return float(outcome.return_) if outcome.success else float(failure_return)
 
 
+def as_outcome(value) -> Outcome:
+    """An :class:`Outcome` from an Outcome or a tuple ``(success, return)`` / ``(success, return, info)``.
+
+    A NaN or infinite return, a success without a return or a non-boolean success raise
+    :class:`~corl.errors.InputError` (from :class:`Outcome`).
+    """
+    if isinstance(value, Outcome):
+        return value
+    if isinstance(value, tuple) and len(value) in (2, 3):
+        return Outcome(*value)
+    raise InputError(f"an outcome must be a corl.Outcome or a tuple (success, return), got {type(value).__name__}: "
+                     f"{value!r}")
+
+
 class BlackBoxOptimizer(ABC):
     """Maximises a black-box return over a box, one trial at a time.
 
-    Subclasses implement :meth:`_propose` and :meth:`_observe`; this base class keeps the data,
-    validates input and guards the ask/tell order. A proposal that was asked but not told is
-    returned again by the next :meth:`ask` (a trial is never silently skipped).
+    Subclasses implement :meth:`_propose` (and :meth:`_observe`, :meth:`_withdraw` if they keep
+    state); this base class keeps the data, validates input, caches the next decision and guards
+    the ask/tell order (see the module docstring for the contract).
+
+    Parameters
+    ----------
+    bounds : the search box, (m,) each.
+    max_evals : the budget: points told in all (start and data told up front included), >= 1.
+    name : used in messages.
+    start : (m,) inside ``bounds``, or None. When given, it is asked first, before the method's
+        own proposals, unless a success is already known or it was told (the user's known-safe
+        start); None lets the method choose.
 
     Attributes
     ----------
-    bounds : the search box, (m,) each.
     X_ : (d, m) every point told so far; ``success_`` (d,) bool; ``returns_`` (d,) float (NaN where
         no return was observed).
     """
 
-    def __init__(self, bounds: Bounds, *, max_evals: int = 100, name: str = "optimizer") -> None:
+    needs_success = False  # a safe method: stops with NO_SAFE_POINT while every trial failed
+    answer_tolerance = ANSWER_TOLERANCE
+
+    def __init__(self, bounds: Bounds, *, max_evals: int = 100, name: str = "optimizer", start=None) -> None:
+        if not isinstance(bounds, Bounds):
+            raise InputError(f"bounds must be a corl.Bounds, got {type(bounds).__name__}")
+        if isinstance(max_evals, bool) or int(max_evals) != max_evals or max_evals < 1:
+            raise InputError(f"max_evals (the trial budget) must be an integer >= 1, got {max_evals!r}")
         self.bounds = bounds
         self.max_evals = int(max_evals)
         self.name = name
+        self.start = None if start is None else check_theta(start, bounds, task=name).copy()
+        self._start_open = start is not None  # the start is still to be tried
         m = bounds.dim
         self.X_ = np.empty((0, m))
         self.success_ = np.empty(0, dtype=bool)
         self.returns_ = np.empty(0)
-        self._pending: np.ndarray | None = None
-        self._stopped = False
+        self._proposal: np.ndarray | None = None  # the next point, once decided
+        self._handed_out = False  # True once ask() returned the proposal
+        self._stop_reason: StopReason | None = None
+        self._decided = False
 
     # -- the interface -------------------------------------------------------------------------
     def ask(self) -> np.ndarray:
-        """Next point to evaluate, (m,). Raises :class:`StateError` when :attr:`done`."""
-        if self._pending is not None:
-            return self._pending.copy()
-        if self.done:
-            raise StateError(f"{self.name} has stopped; read .best instead of asking again")
-        x = self._propose()
-        if x is None:
-            self._stopped = True
-            raise StateError(f"{self.name} has converged; read .best instead of asking again")
-        self._pending = self.bounds.clip(np.asarray(x, dtype=float).reshape(self.bounds.dim))
-        return self._pending.copy()
+        """Next point to evaluate, (m,); the same point until it is told. Raises :class:`StateError` when :attr:`done`."""
+        self._decide()
+        if self._stop_reason is not None:
+            raise StateError(f"{self.name} has stopped ({self._stop_reason.value}): {_EXPLAIN[self._stop_reason]}. "
+                             "Check .done before asking; read .best for the result")
+        self._handed_out = True
+        return self._proposal.copy()
 
-    def tell(self, x: np.ndarray, outcome: Outcome) -> None:
-        """Record the outcome of evaluating ``x`` (m,); ``x`` need not have been asked."""
+    def tell(self, x: np.ndarray, outcome) -> None:
+        """Record the outcome (an :class:`Outcome` or ``(success, return)``) of evaluating ``x`` (m,).
+
+        ``x`` need not have been asked. Bad input raises :class:`~corl.errors.InputError` and
+        records nothing.
+        """
         x = check_theta(x, self.bounds, task=self.name)
-        if not isinstance(outcome, Outcome):
-            raise StateError(f"tell needs an Outcome, got {type(outcome).__name__}")
+        outcome = as_outcome(outcome)
         r = np.nan if outcome.return_ is None else float(outcome.return_)
         self.X_ = np.vstack([self.X_, x])
         self.success_ = np.append(self.success_, outcome.success)
         self.returns_ = np.append(self.returns_, r)
-        if self._pending is not None and np.allclose(x, self._pending, rtol=0, atol=1e-12):
-            self._pending = None
+        if self._start_open and self._answers(x, self.start):
+            self._start_open = False
+        answered = self._proposal is not None and self._answers(x, self._proposal)
+        if answered or not self._handed_out or self.n_evals >= self.max_evals:
+            if self._proposal is not None and not answered:
+                self._withdraw(self._proposal)  # decided from older data (or past the budget): decide again
+            self._proposal, self._handed_out = None, False
+        self._decided, self._stop_reason = self._proposal is not None, None
         self._observe(x, outcome)
 
     @property
     def done(self) -> bool:
-        """True once the budget is spent or the method's own stopping rule fired."""
-        return self._stopped or len(self.X_) >= self.max_evals
+        """True once the budget is spent or the method's own stopping rule fired (see :attr:`stop_reason`)."""
+        self._decide()
+        return self._stop_reason is not None
+
+    @property
+    def stop_reason(self) -> StopReason | None:
+        """Why the method stopped, or None while it runs; known before :meth:`ask`."""
+        self._decide()
+        return self._stop_reason
 
     @property
     def best(self) -> tuple[np.ndarray, float] | None:
@@ -91,10 +178,38 @@ class BlackBoxOptimizer(ABC):
     def n_evals(self) -> int:
         return len(self.X_)
 
+    # -- the decision, once per tell -----------------------------------------------------------
+    def _decide(self) -> None:
+        if self._decided:
+            return
+        if self.n_evals >= self.max_evals:
+            decision = StopReason.BUDGET
+        elif self._start_open and not np.any(self.success_):
+            decision = self.start
+        elif self.needs_success and self.n_evals and not np.any(self.success_):
+            decision = StopReason.NO_SAFE_POINT  # checked before any model is fitted
+        else:
+            decision = self._propose()
+        if decision is None:
+            decision = StopReason.CONVERGED
+        if isinstance(decision, StopReason):
+            self._stop_reason, self._proposal = decision, None
+        else:
+            x = np.asarray(decision, dtype=float).reshape(self.bounds.dim)
+            self._stop_reason, self._proposal = None, self.bounds.clip(x)
+        self._decided = True
+
+    def _answers(self, x: np.ndarray, proposal: np.ndarray) -> bool:
+        """``x`` answers ``proposal``: within ``answer_tolerance`` of the box width in every coordinate."""
+        return bool(np.all(np.abs(x - proposal) <= self.answer_tolerance * self.bounds.width))
+
     # -- for subclasses ------------------------------------------------------------------------
     @abstractmethod
-    def _propose(self) -> np.ndarray | None:
-        """Next point (m,), or None when the method's stopping rule fires."""
+    def _propose(self) -> np.ndarray | StopReason | None:
+        """Next point (m,), or the :class:`StopReason` to stop with (None means ``CONVERGED``)."""
 
     def _observe(self, x: np.ndarray, outcome: Outcome) -> None:
         """Hook called after each tell; the data is already in ``X_``, ``success_``, ``returns_``."""
+
+    def _withdraw(self, x: np.ndarray) -> None:
+        """Hook: the proposal ``x`` was decided but will not be evaluated (new data arrived first)."""

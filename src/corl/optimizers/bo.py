@@ -1,7 +1,10 @@
 """Bayesian optimization over theta with PIBU (Eq. 17) or UCB, one ask/tell interface.
 
-Each ``ask`` refits the GPs on all data told so far, builds the acquisition, maximises it and
-applies the stopping rule. ``PIBU`` uses the return GP on successes only and the success
+After each ``tell``, the next decision (read through ``done``, ``stop_reason`` or ``ask``) refits
+the GPs on all data told so far, builds the acquisition, maximises it and applies the stopping
+rule, once (:mod:`corl.optimizers.base`). Stop reasons: ``NO_IMPROVEMENT`` when PIBU's acquisition
+is zero everywhere, ``CONVERGED`` when the stopping rule fires, ``NO_SAFE_POINT`` while every trial
+of PIBU failed, ``BUDGET``. ``PIBU`` uses the return GP on successes only and the success
 classifier on all points; ``UCB`` ignores safety and models the score (return on success,
 ``failure_return`` on failure) with one GP.
 """
@@ -15,7 +18,7 @@ import numpy as np
 
 from corl.acquisition import PIBU, MaximizerConfig, PIBUConfig, PIBUVariant, maximize, upper_confidence_bound
 from corl.errors import InputError
-from corl.optimizers.base import BlackBoxOptimizer
+from corl.optimizers.base import BlackBoxOptimizer, StopReason
 from corl.optimizers.gpconfig import ClassifierConfig, RegressionConfig
 from corl.problem import Bounds
 
@@ -63,24 +66,31 @@ def _stop(rule: StopRule, x: np.ndarray, X: np.ndarray, distance: float,
 
 
 class _BayesOpt(BlackBoxOptimizer):
+    """The BO loop shared by PIBU and UCB: ``_acquisition()`` on the data, maximised, then the stop rule.
+
+    A subclass builds its acquisition in ``_acquisition`` (None: no data yet); ``_propose`` may
+    also be overridden and return None (stop, ``CONVERGED``) or a :class:`StopReason`.
+    """
+
     stop_when_zero = False
-    def __init__(self, bounds: Bounds, config: BOConfig, *, max_evals: int, seed, name: str) -> None:
-        super().__init__(bounds, max_evals=max_evals, name=name)
+
+    def __init__(self, bounds: Bounds, config: BOConfig, *, max_evals: int, seed, name: str, start=None) -> None:
+        super().__init__(bounds, max_evals=max_evals, name=name, start=start)
         self.config = config
         self.rng = np.random.default_rng(seed)
         self.last_acquisition = None  # the acquisition of the latest ask, for plots
 
-    def _propose(self) -> np.ndarray | None:
+    def _propose(self) -> np.ndarray | StopReason:
         acq = self._acquisition()
-        if acq is None:  # no data yet: start in the middle of the box
+        if acq is None:  # no data and no start: begin in the middle of the box
             return (self.bounds.lower + self.bounds.upper) / 2.0
         self.last_acquisition = acq
         x, value = maximize(acq, self.bounds, rng=self.rng, config=self.config.maximizer, extra=self.X_)
         if self.stop_when_zero and not value > 0.0:
-            return None  # nothing to gain anywhere: no likely improvement, no uncertain boundary
+            return StopReason.NO_IMPROVEMENT  # nothing to gain anywhere: no likely improvement, no uncertain boundary
         cfg = self.config
         if _stop(cfg.stop_rule, x, self.X_, cfg.stop_distance, cfg.distance_scale):
-            return None
+            return StopReason.CONVERGED
         return x
 
     def _acquisition(self):
@@ -95,13 +105,17 @@ class PIBUOptimizer(_BayesOpt):
     bounds : search box over theta, (m,) each.
     config : GP hyperparameters, maximiser and stopping rule.
     pibu : :class:`PIBUConfig` (variant and thresholds).
+    max_evals, start : the budget (points told in all) and the first point (see :class:`BlackBoxOptimizer`).
+    seed : int, Generator or None.
     """
 
+    needs_success = True
+
     def __init__(self, bounds: Bounds, config: BOConfig = BOConfig(), pibu: PIBUConfig = PIBUConfig(), *,
-                 max_evals: int = 100, seed=None) -> None:
+                 max_evals: int = 100, seed=None, start=None) -> None:
         if pibu.variant is PIBUVariant.LITERAL and config.stop_rule is StopRule.NEAR_SAMPLED:
             config = replace(config, stop_rule=StopRule.SMALL_STEP)
-        super().__init__(bounds, config, max_evals=max_evals, seed=seed, name="PIBU")
+        super().__init__(bounds, config, max_evals=max_evals, seed=seed, name="PIBU", start=start)
         self.stop_when_zero = True
         self.pibu = pibu
 
@@ -126,10 +140,10 @@ class UCBOptimizer(_BayesOpt):
     """
 
     def __init__(self, bounds: Bounds, config: BOConfig = BOConfig(), *, kappa: float = 2.0,
-                 failure_return: float = -15.0, max_evals: int = 100, seed=None) -> None:
+                 failure_return: float = -15.0, max_evals: int = 100, seed=None, start=None) -> None:
         if kappa < 0:
             raise InputError(f"kappa must be >= 0, got {kappa}")
-        super().__init__(bounds, config, max_evals=max_evals, seed=seed, name="UCB")
+        super().__init__(bounds, config, max_evals=max_evals, seed=seed, name="UCB", start=start)
         self.kappa = kappa
         self.failure_return = failure_return
 

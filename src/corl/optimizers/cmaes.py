@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from corl.errors import InputError
-from corl.optimizers.base import BlackBoxOptimizer, score_of
+from corl.optimizers.base import BlackBoxOptimizer, StopReason, score_of
 from corl.problem import Bounds, Outcome, check_theta
 
 __all__ = ["CMAES", "CMAESConfig"]
@@ -110,16 +110,18 @@ class CMAES(BlackBoxOptimizer):
 
     Notes
     -----
-    :attr:`done` is also True when pycma's stopping rules (``es_.stop()``: tolx, flat fitness,
-    stagnation, ...) fire at the end of a population; a ``while not opt.done`` loop never sees a
-    :class:`~corl.errors.StateError`.
+    :attr:`done` is also True, with ``stop_reason`` ``CONVERGED``, when pycma's stopping rules
+    (``es_.stop()``: tolx, flat fitness, stagnation, ...) fire at the end of a population; a
+    ``while not opt.done`` loop never sees a :class:`~corl.errors.StateError`. With ``start``
+    given, the first trial is ``start`` itself (kept in the data only, like any point CMA-ES did
+    not sample); ``x0`` is the mean of the first population.
     """
 
     def __init__(self, bounds: Bounds, x0, config: CMAESConfig = CMAESConfig(), *,
-                 failure_return: float = -15.0, max_evals: int = 100, seed=None) -> None:
+                 failure_return: float = -15.0, max_evals: int = 100, seed=None, start=None) -> None:
         import cma  # heavy import kept out of ``import corl``
 
-        super().__init__(bounds, max_evals=max_evals, name="CMA-ES")
+        super().__init__(bounds, max_evals=max_evals, name="CMA-ES", start=start)
         if not np.isfinite(failure_return):
             raise InputError(f"failure_return must be finite, got {failure_return}")
         x0 = check_theta(x0, bounds, task=self.name)
@@ -145,28 +147,28 @@ class CMAES(BlackBoxOptimizer):
         self._scores: list[float | None] = []  # score of each member, None until told
         self._next = 0  # index of the next member to hand out
 
-    # -- the interface -------------------------------------------------------------------------
-    @property
-    def done(self) -> bool:
-        """True once the budget is spent or pycma's stopping rule fired after a full population."""
-        return super().done or (self._between_populations() and bool(self.es_.stop()))
-
     @property
     def mean_(self) -> np.ndarray:
         """(m,) distribution mean in box coordinates."""
         return self.bounds.clip(self.bounds.from_unit(self.es_.result.xfavorite))
 
     # -- BlackBoxOptimizer hooks ---------------------------------------------------------------
-    def _propose(self) -> np.ndarray | None:
+    def _propose(self) -> np.ndarray | StopReason:
         if self._between_populations():
             if self.es_.stop():
-                return None
+                return StopReason.CONVERGED
             self._new_population()
-        # the base class asks again only after the member handed out last was told, and the
-        # generation is updated as soon as the last member is told: a member is always left
+        # the base class decides again only after the member handed out last was told (or
+        # withdrawn), and the generation is updated as soon as the last member is told: a member
+        # is always left
         x = self._points[self._next]
         self._next += 1
         return x
+
+    def _withdraw(self, x: np.ndarray) -> None:
+        """A member decided but not handed out goes back: it is handed out again next time."""
+        if self._next > 0 and self._scores[self._next - 1] is None and np.array_equal(x, self._points[self._next - 1]):
+            self._next -= 1
 
     def _observe(self, x: np.ndarray, outcome: Outcome) -> None:
         k = self._member_of(x)
@@ -187,9 +189,9 @@ class CMAES(BlackBoxOptimizer):
         self._next = 0
 
     def _member_of(self, x: np.ndarray) -> int | None:
-        """Index of the handed-out, not yet told member at ``x``, or None."""
+        """Index of the handed-out, not yet told member that ``x`` answers (base class tolerance), or None."""
         for k in range(self._next):
-            if self._scores[k] is None and np.allclose(x, self._points[k], rtol=0.0, atol=1e-12):
+            if self._scores[k] is None and self._answers(x, self._points[k]):
                 return k
         return None
 

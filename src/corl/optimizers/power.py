@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from corl.errors import InputError
-from corl.optimizers.base import BlackBoxOptimizer, score_of
+from corl.optimizers.base import BlackBoxOptimizer, StopReason, score_of
 from corl.problem import Bounds, Outcome, check_theta
 
 __all__ = ["PoWER", "PoWERConfig", "power_weights"]
@@ -99,6 +99,8 @@ class PoWER(BlackBoxOptimizer):
     failure_return : score of a failed trial (the paper's constant cost 15 -> -15.0).
     max_evals : trial budget; :attr:`done` turns True when it is spent.
     seed : int, Generator or None; the same seed gives the same sequence of points.
+    start : (m,) or None: the first trial (see :class:`BlackBoxOptimizer`); it enters the
+        importance-sampling set like any told point.
 
     Attributes
     ----------
@@ -108,8 +110,8 @@ class PoWER(BlackBoxOptimizer):
     """
 
     def __init__(self, bounds: Bounds, x0, config: PoWERConfig = PoWERConfig(), *,
-                 failure_return: float = -15.0, max_evals: int = 100, seed=None) -> None:
-        super().__init__(bounds, max_evals=max_evals, name="PoWER")
+                 failure_return: float = -15.0, max_evals: int = 100, seed=None, start=None) -> None:
+        super().__init__(bounds, max_evals=max_evals, name="PoWER", start=start)
         if not np.isfinite(failure_return):
             raise InputError(f"failure_return must be finite, got {failure_return}")
         self.config = config
@@ -119,14 +121,9 @@ class PoWER(BlackBoxOptimizer):
         self.std_ = float(config.std)
         self.scores_ = np.empty(0)
 
-    @property
-    def done(self) -> bool:
-        """True once the budget is spent or the exploration fell below ``tol_std``."""
-        return super().done or self.std_ < self.config.tol_std
-
-    def _propose(self) -> np.ndarray | None:
+    def _propose(self) -> np.ndarray | StopReason:
         if self.std_ < self.config.tol_std:
-            return None
+            return StopReason.CONVERGED  # the exploration fell below tol_std
         # exploration: x = mean + eps, eps ~ N(0, Sigma), Sigma = diag((std * width)^2)
         eps = self.std_ * self.bounds.width * self.rng.standard_normal(self.bounds.dim)
         return self.bounds.clip(self.mean_ + eps)

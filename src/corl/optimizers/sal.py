@@ -27,7 +27,7 @@ import numpy as np
 from corl.acquisition import MaximizerConfig, maximize, upper_confidence_bound
 from corl.errors import InputError
 from corl.numerics import floor_variance, ndtr
-from corl.optimizers.base import BlackBoxOptimizer
+from corl.optimizers.base import BlackBoxOptimizer, StopReason
 from corl.optimizers.bo import StopRule, _stop
 from corl.optimizers.gpconfig import RegressionConfig
 from corl.problem import Bounds
@@ -58,8 +58,11 @@ class SALConfig:
 class SALOptimizer(BlackBoxOptimizer):
     """Safe exploration with an observed distance to the boundary (see module docstring)."""
 
-    def __init__(self, bounds: Bounds, config: SALConfig = SALConfig(), *, max_evals: int = 100, seed=None) -> None:
-        super().__init__(bounds, max_evals=max_evals, name="SAL")
+    needs_success = True  # the return GP needs a success; NO_SAFE_POINT before that
+
+    def __init__(self, bounds: Bounds, config: SALConfig = SALConfig(), *, max_evals: int = 100, seed=None,
+                 start=None) -> None:
+        super().__init__(bounds, max_evals=max_evals, name="SAL", start=start)
         self.config = config
         self.rng = np.random.default_rng(seed)
         self.safety_ = np.empty(0)
@@ -86,13 +89,11 @@ class SALOptimizer(BlackBoxOptimizer):
         mu, var = (model or self.safety_model()).predict(X)
         return ndtr(mu / np.sqrt(floor_variance(var)))
 
-    def _propose(self) -> np.ndarray | None:
+    def _propose(self) -> np.ndarray | StopReason:
         if len(self.X_) == 0:
             return (self.bounds.lower + self.bounds.upper) / 2.0
         cfg = self.config
-        ok = self.success_ & np.isfinite(self.returns_)
-        if not np.any(ok):
-            return None
+        ok = self.success_ & np.isfinite(self.returns_)  # not empty: needs_success (base class)
         reg = cfg.regression.build().fit(self.X_[ok], self.returns_[ok])
         safety = self.safety_model()
         threshold = 1.0 - cfg.alpha
@@ -103,6 +104,8 @@ class SALOptimizer(BlackBoxOptimizer):
             return np.where(self.safe_probability(X, safety) >= threshold, value, -np.inf)
 
         x, value = maximize(acquisition, self.bounds, rng=self.rng, config=cfg.maximizer, extra=self.X_)
-        if not np.isfinite(value) or _stop(cfg.stop_rule, x, self.X_, cfg.stop_distance):
-            return None
+        if not np.isfinite(value):
+            return StopReason.NO_IMPROVEMENT  # no candidate is safe enough
+        if _stop(cfg.stop_rule, x, self.X_, cfg.stop_distance):
+            return StopReason.CONVERGED
         return x

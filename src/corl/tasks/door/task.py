@@ -197,7 +197,7 @@ class DoorTask:
         regression = replace(DOOR_REGRESSION, lengthscale=(DOOR_REGRESSION.lengthscale, DOOR_REGRESSION.lengthscale * ratio))
         classifier = replace(DOOR_CLASSIFIER, lengthscale=(DOOR_CLASSIFIER.lengthscale, DOOR_CLASSIFIER.lengthscale * ratio))
         return MethodSettings(regression=regression, classifier=classifier, corl=corl,
-                              rl_budget=60, direct_budget=150, theta_scale=(1.0, ratio))
+                              direct_budget=150, theta_scale=(1.0, ratio))
 
     def retimed(self, time_map) -> "DoorTask":
         """The task with its contact instants moved by a phase step (Sec. VI-B): a copy whose Eq. 6

@@ -1,0 +1,204 @@
+"""corl's black-box methods built by name over a box, from a start point: :func:`make_optimizer`.
+
+For users without a trajectory: the safe optimizer on its own. Every method comes out speaking
+the :class:`~corl.optimizers.base.BlackBoxOptimizer` contract (``ask``, ``tell``, ``done``,
+``stop_reason``, ``best``); its first trial is the start, and ``budget`` counts every trial, the
+start included. :func:`corl.loop.optimize` is the loop around it.
+
+The registry is a dict from name to builder; :func:`register_optimizer` adds one::
+
+    @register_optimizer("MyPIBU")
+    def _build(bounds, start, *, budget, rng, settings):
+        return MyOptimizer(bounds, max_evals=budget, seed=rng, start=start)
+
+The same builders make the black-box part of the paper's methods
+(:func:`corl.experiments.methods.make_method`), with the paper's settings.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from corl.acquisition import PIBUConfig, PIBUVariant
+from corl.errors import InputError
+from corl.optimizers.base import BlackBoxOptimizer
+from corl.optimizers.bo import BOConfig, PIBUOptimizer, StopRule, UCBOptimizer
+from corl.optimizers.gpconfig import ClassifierConfig, RegressionConfig
+from corl.optimizers.sal import SALConfig, SALOptimizer
+from corl.problem import Bounds, check_theta
+
+__all__ = ["OptimizerSettings", "OPTIMIZERS", "register_optimizer", "make_optimizer", "as_bounds"]
+
+Builder = Callable[..., BlackBoxOptimizer]
+OPTIMIZERS: dict[str, Builder] = {}
+
+BOX_LENGTHSCALE = 0.1  # GP length scales of a user's box: a tenth of its width per dimension
+
+
+@dataclass(frozen=True)
+class OptimizerSettings:
+    """Everything the black-box methods need besides the box, the start and the budget.
+
+    Attributes
+    ----------
+    regression, classifier : the return GP g_R and the success GP g_S.
+    failure_return : the score of a failure for the methods that ignore safety (UCB, CMA, PoWER).
+    ucb_kappa : UCB's exploration weight.
+    cma_sigma0 : CMA-ES's initial step, a fraction of the box width.
+    stop_distance : PIBU's and SAL's stop: the next point is this close to a sampled one.
+    step_distance : UCB's and PIBU(literal)'s stop: the step ``||theta(d+1) - theta(d)||`` is this small.
+    distance_scale : (m,) the unit the two distances are measured in per dimension, or None
+        (theta's own units). SAL measures in theta's own units.
+    sal : SAL's settings; None takes ``SALConfig(regression=regression)``.
+
+    The defaults are the paper's synthetic values, in the synthetic benchmark's units;
+    :meth:`for_box` scales them to any box.
+    """
+
+    regression: RegressionConfig = field(default_factory=RegressionConfig)
+    classifier: ClassifierConfig = field(default_factory=ClassifierConfig)
+    failure_return: float = -15.0
+    ucb_kappa: float = 2.0
+    cma_sigma0: float = 0.3
+    stop_distance: float = 1e-3
+    step_distance: float = 3e-3
+    distance_scale: tuple[float, ...] | None = None
+    sal: SALConfig | None = None
+
+    def __post_init__(self) -> None:
+        if not np.isfinite(self.failure_return):
+            raise InputError(f"failure_return must be finite, got {self.failure_return}")
+        if not (self.stop_distance >= 0 and self.step_distance >= 0):
+            raise InputError("stop_distance and step_distance must be >= 0")
+
+    @classmethod
+    def for_box(cls, bounds: Bounds) -> "OptimizerSettings":
+        """Settings in units of ``bounds``: GP length scales a tenth of the width per dimension,
+        stopping distances a fraction of the width (0.1 % near a sampled point, 0.3 % per step)."""
+        width = np.asarray(bounds.width, dtype=float)
+        ls = tuple(float(v) for v in BOX_LENGTHSCALE * width)
+        mean_width = float(np.exp(np.mean(np.log(width))))  # SAL's scalar settings: the geometric mean
+        regression = RegressionConfig(lengthscale=ls)
+        sal = SALConfig(regression=regression, critical_distance=0.08 * mean_width,
+                        safety_lengthscale=BOX_LENGTHSCALE * mean_width, stop_distance=1e-3 * mean_width)
+        return cls(regression=regression, classifier=ClassifierConfig(lengthscale=ls),
+                   distance_scale=tuple(float(v) for v in width), sal=sal)
+
+    def bo(self, stop_rule: StopRule = StopRule.NEAR_SAMPLED) -> BOConfig:
+        distance = self.stop_distance if stop_rule is StopRule.NEAR_SAMPLED else self.step_distance
+        return BOConfig(self.regression, self.classifier, stop_rule=stop_rule, stop_distance=distance,
+                        distance_scale=self.distance_scale)
+
+
+def register_optimizer(name: str) -> Callable[[Builder], Builder]:
+    """Decorator: ``builder(bounds, start, *, budget, rng, settings) -> BlackBoxOptimizer`` under ``name``."""
+    if not isinstance(name, str) or not name:
+        raise InputError(f"an optimizer name must be a non-empty string, got {name!r}")
+
+    def add(builder: Builder) -> Builder:
+        OPTIMIZERS[name] = builder
+        return builder
+
+    return add
+
+
+@register_optimizer("PIBU")
+def _pibu(bounds, start, *, budget, rng, settings):
+    return PIBUOptimizer(bounds, settings.bo(), max_evals=budget, seed=rng, start=start)
+
+
+@register_optimizer("PIBU(budget)")  # PIBU without its stopping rule: it runs the whole budget
+def _pibu_budget(bounds, start, *, budget, rng, settings):
+    return PIBUOptimizer(bounds, settings.bo(StopRule.BUDGET), max_evals=budget, seed=rng, start=start)
+
+
+@register_optimizer("PIBU(literal)")
+def _pibu_literal(bounds, start, *, budget, rng, settings):
+    return PIBUOptimizer(bounds, settings.bo(StopRule.SMALL_STEP), PIBUConfig(variant=PIBUVariant.LITERAL),
+                         max_evals=budget, seed=rng, start=start)
+
+
+@register_optimizer("UCB")
+def _ucb(bounds, start, *, budget, rng, settings):
+    return UCBOptimizer(bounds, settings.bo(StopRule.SMALL_STEP), kappa=settings.ucb_kappa,
+                        failure_return=settings.failure_return, max_evals=budget, seed=rng, start=start)
+
+
+@register_optimizer("SAL")
+def _sal(bounds, start, *, budget, rng, settings):
+    cfg = settings.sal if settings.sal is not None else SALConfig(regression=settings.regression)
+    return SALOptimizer(bounds, cfg, max_evals=budget, seed=rng, start=start)
+
+
+@register_optimizer("CMA")
+def _cma(bounds, start, *, budget, rng, settings):
+    from corl.optimizers.cmaes import CMAES, CMAESConfig
+
+    return CMAES(bounds, start, CMAESConfig(sigma0=settings.cma_sigma0), failure_return=settings.failure_return,
+                 max_evals=budget, seed=rng, start=start)
+
+
+@register_optimizer("PoWER")
+def _power(bounds, start, *, budget, rng, settings):
+    from corl.optimizers.power import PoWER, PoWERConfig
+
+    return PoWER(bounds, start, PoWERConfig(), failure_return=settings.failure_return, max_evals=budget, seed=rng,
+                 start=start)
+
+
+def as_bounds(bounds) -> Bounds:
+    """A :class:`Bounds` from a Bounds or a pair ``(lower, upper)``, with a clear error for a flat box."""
+    if isinstance(bounds, Bounds):
+        return bounds
+    try:
+        lower, upper = bounds
+        lower = np.atleast_1d(np.asarray(lower, dtype=float))
+        upper = np.atleast_1d(np.asarray(upper, dtype=float))
+    except (TypeError, ValueError):
+        raise InputError(f"bounds must be a corl.Bounds or a pair (lower, upper) of (m,) arrays, got {bounds!r}") from None
+    if lower.shape == upper.shape and lower.ndim == 1 and np.all(np.isfinite(lower)) and np.all(np.isfinite(upper)):
+        flat = np.flatnonzero(~(lower < upper))
+        if flat.size:
+            raise InputError(
+                f"the box has no width in coordinate(s) {flat.tolist()} (lower {lower[flat].tolist()}, upper "
+                f"{upper[flat].tolist()}): give lower < upper, or leave a fixed coordinate out of theta")
+    return Bounds(lower, upper)
+
+
+def make_optimizer(name: str, bounds, start, *, budget: int = 50, seed=None,
+                   settings: OptimizerSettings | None = None) -> BlackBoxOptimizer:
+    """One of corl's black-box methods over ``bounds``, from ``start``, as an ask/tell optimizer.
+
+    Parameters
+    ----------
+    name : a key of :data:`OPTIMIZERS`: "PIBU", "PIBU(literal)", "PIBU(budget)", "UCB", "SAL",
+        "CMA", "PoWER" (and any registered later).
+    bounds : :class:`Bounds` or ``(lower, upper)``, (m,) each, lower < upper.
+    start : (m,) inside the box: the first trial. The safe methods (PIBU, SAL) grow the safe set
+        from it, so it should be a point known to succeed.
+    budget : trials in all, the start included (>= 1).
+    seed : int, Generator or None.
+    settings : :class:`OptimizerSettings`; None takes :meth:`OptimizerSettings.for_box`.
+
+    Raises
+    ------
+    InputError : unknown name, a flat box, a start outside it, a budget < 1.
+    """
+    if name not in OPTIMIZERS:
+        raise InputError(f"unknown optimizer '{name}'; choose one of {', '.join(OPTIMIZERS)}")
+    box = as_bounds(bounds)
+    try:
+        x0 = check_theta(start, box, task=name)
+    except InputError as exc:
+        raise InputError(f"the start is not a point of the box: {exc}") from None
+    if isinstance(budget, bool) or not isinstance(budget, (int, np.integer)) or budget < 1:
+        raise InputError(f"budget (trials in all, the start included) must be an integer >= 1, got {budget!r}")
+    if settings is None:
+        settings = OptimizerSettings.for_box(box)
+    elif not isinstance(settings, OptimizerSettings):
+        raise InputError(f"settings must be an OptimizerSettings, got {type(settings).__name__}")
+    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    return OPTIMIZERS[name](box, x0, budget=int(budget), rng=rng, settings=settings)

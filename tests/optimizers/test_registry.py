@@ -1,0 +1,141 @@
+"""make_optimizer and corl.optimize: the safe optimizer on its own, and its errors."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import corl
+from corl.errors import InputError, RolloutError
+from corl.optimizers.base import BlackBoxOptimizer, StopReason
+from corl.optimizers.bo import PIBUOptimizer
+from corl.optimizers.registry import OptimizerSettings, register_optimizer
+from corl.problem import Bounds, Outcome
+from corl.tasks.synthetic import distance_to_safe, return_of
+
+LOW, HIGH = [-math.pi], [math.pi]
+
+
+def synthetic(theta):
+    """The paper's 1-D problem as a plain function: (success, return)."""
+    t = float(theta[0])
+    ok = -1.5 < t < 2.5
+    return ok, (return_of(t) if ok else None)
+
+
+def test_optimize_finds_the_paper_optimum_safely_from_a_start():
+    result = corl.optimize(synthetic, (LOW, HIGH), [1.8], budget=40, seed=0)
+    assert abs(result.theta[0]) < 0.02 and result.return_ > 0.99
+    assert result.stop_reason is StopReason.CONVERGED and result.trials < 40
+    failed = result.optimizer.X_[~result.optimizer.success_, 0]
+    assert result.failures == len(failed) <= 3 and all(distance_to_safe(t) < 0.3 for t in failed)
+    assert np.array_equal(result.optimizer.X_[0], [1.8])  # the start is trial 1
+
+
+@pytest.mark.parametrize("name", sorted(corl.OPTIMIZERS))
+def test_every_method_runs_from_a_start_within_its_budget(name):
+    result = corl.optimize(synthetic, (LOW, HIGH), [1.8], method=name, budget=25, seed=1)
+    assert result.trials <= 25 and isinstance(result.stop_reason, StopReason)
+    assert result.return_ >= return_of(1.8)  # never worse than the start
+
+
+def test_f_may_return_an_outcome_and_the_callback_sees_every_trial():
+    seen = []
+    result = corl.optimize(lambda t: Outcome(*synthetic(t)), (LOW, HIGH), [0.5], budget=8, seed=0,
+                           callback=lambda x, o: seen.append((x.copy(), o.success)))
+    assert len(seen) == result.trials
+
+
+def test_bad_arguments_are_clear_errors():
+    with pytest.raises(InputError, match="start is not a point of the box"):
+        corl.make_optimizer("PIBU", (LOW, HIGH), [4.0])
+    with pytest.raises(InputError, match="no width in coordinate"):
+        corl.make_optimizer("PIBU", ([0.0, 1.0], [1.0, 1.0]), [0.5, 1.0])
+    with pytest.raises(InputError, match="unknown optimizer 'PIBO'; choose one of PIBU"):
+        corl.make_optimizer("PIBO", (LOW, HIGH), [0.0])
+    with pytest.raises(InputError, match="budget"):
+        corl.make_optimizer("PIBU", (LOW, HIGH), [0.0], budget=0)
+    with pytest.raises(InputError, match="pair"):
+        corl.make_optimizer("PIBU", 3.0, [0.0])
+    with pytest.raises(InputError, match="OptimizerSettings"):
+        corl.make_optimizer("PIBU", (LOW, HIGH), [0.0], settings={"lengthscale": 1})
+
+
+def test_a_failing_start_of_a_safe_method_is_an_error_that_keeps_the_optimizer():
+    with pytest.raises(InputError, match="start .* failed") as info:
+        corl.optimize(synthetic, (LOW, HIGH), [3.0], budget=10)
+    opt = info.value.optimizer
+    assert opt.stop_reason is StopReason.NO_SAFE_POINT and opt.n_evals == 1
+    opt.tell([0.5], synthetic([0.5]))  # usable: a success lets it go on
+    assert not opt.done
+    # a method that ignores safety just goes on from a failing start
+    assert corl.optimize(synthetic, (LOW, HIGH), [3.0], method="CMA", budget=10, seed=0).trials == 10
+
+
+def test_a_nan_from_f_or_an_exception_in_f_keeps_the_pending_trial():
+    calls = []
+
+    def flaky(theta):
+        calls.append(theta)
+        return (True, math.nan) if len(calls) == 3 else synthetic(theta)
+
+    with pytest.raises(InputError, match="bad value in trial 3.*finite return") as info:
+        corl.optimize(flaky, (LOW, HIGH), [1.0], budget=10, seed=0)
+    opt = info.value.optimizer
+    assert opt.n_evals == 2 and np.array_equal(opt.ask(), calls[2])  # the NaN trial is still pending
+    opt.tell(calls[2], synthetic(calls[2]))
+    assert opt.n_evals == 3
+
+    def broken(theta):
+        raise OSError("robot offline")
+
+    with pytest.raises(RolloutError, match="robot offline") as info:
+        corl.optimize(broken, (LOW, HIGH), [1.0], budget=10)
+    assert info.value.optimizer.n_evals == 0 and np.array_equal(info.value.optimizer.ask(), [1.0])
+
+
+def test_for_box_settings_scale_with_the_box():
+    box = Bounds([0.0, -5.0], [0.2, 5.0])
+    s = OptimizerSettings.for_box(box)
+    np.testing.assert_allclose(s.regression.lengthscale, [0.02, 1.0])
+    np.testing.assert_allclose(s.classifier.lengthscale, [0.02, 1.0])
+    assert s.distance_scale == (0.2, 10.0)
+    opt = corl.make_optimizer("PIBU", box, [0.1, 0.0])
+    assert opt.config.distance_scale == (0.2, 10.0) and opt.max_evals == 50
+
+
+def test_the_registry_takes_a_new_method_by_name():
+    @register_optimizer("PIBU-test-only")
+    def build(bounds, start, *, budget, rng, settings):
+        return PIBUOptimizer(bounds, settings.bo(), max_evals=budget, seed=rng, start=start)
+
+    try:
+        opt = corl.make_optimizer("PIBU-test-only", (LOW, HIGH), [0.5], budget=3)
+        assert isinstance(opt, BlackBoxOptimizer) and np.array_equal(opt.ask(), [0.5])
+    finally:
+        corl.OPTIMIZERS.pop("PIBU-test-only")
+
+
+def test_import_corl_stays_light():
+    code = "import sys, corl; print(sorted(m for m in ('scipy', 'cma', 'corl.gp', 'corl.loop') if m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+    assert callable(corl.optimize) and callable(corl.make_optimizer)
+
+
+def test_the_readme_example_prints_what_the_readme_says(capsys):
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    section = readme.split("## The safe optimizer on its own", 1)[1]
+    code = section.split("```python\n", 1)[1].split("```", 1)[0]
+    expected = code.strip().splitlines()[-1].lstrip("# ").split()
+    exec(compile(code, "README.md", "exec"), {})
+    printed = capsys.readouterr().out.replace("[", "").replace("]", "").split()
+    theta, ret, reason, trials, failures = printed
+    assert f"{float(theta):.4f}" == expected[0].strip("[]") and f"{float(ret):.5f}" == expected[1]
+    assert [reason, trials, failures] == expected[2:]
