@@ -97,8 +97,9 @@ class Kinematics:
         nv = robot.model.nv
         self._jac_a, self._jac_b = np.zeros((3, nv)), np.zeros((3, nv))
         self._jac_rot = np.zeros((3, nv))
-        self._angle = 0.0
-        self._q: np.ndarray | None = None  # the pose of the private data (None: not posed yet)
+        self._slope = 1.0
+        self._key: bytes | None = None  # q.tobytes() of the pose of the private data
+        self._unit_ratios = bool(np.all(robot.ratios == 1.0))
 
     # ---------------------------------------------------------------- frames
     def site(self, *names: str) -> Frame:
@@ -113,17 +114,24 @@ class Kinematics:
 
     # ---------------------------------------------------------------- pose the private model
     def set_q(self, q: np.ndarray) -> None:
-        """Pose the private model at ``q`` (Q,) and update its kinematics."""
+        """Pose the private model at ``q`` (Q,) and update its kinematics (nothing to do when it is
+        already there: the stacked features of one time step pose it once)."""
         r = self.robot
-        q = r.check_q(q)
-        if self._q is not None and np.array_equal(q, self._q):
-            return  # already there: the stacked features of one time step pose it once
-        self._q = q.copy()
-        r.write(self.data, q)
+        q = np.asarray(q, dtype=float)
+        if q.shape != (r.dim,):
+            r.check_q(q)  # raises with the expected layout
+        key = q.tobytes()
+        if key == self._key:
+            return
+        self._key = key
+        d, J = self.data, r.num_joints
+        d.qpos[r.qpos] = q[:J]
         if r.gripper is not None:
-            self._angle = r.gripper.angle(q[r.num_joints])
-        self._mj.mj_kinematics(r.model, self.data)
-        self._mj.mj_comPos(r.model, self.data)
+            angle = r.gripper.angle(q[J])
+            d.qpos[r.gripper_qpos] = angle if self._unit_ratios else r.ratios * angle
+            self._slope = r.gripper.dc_da(angle)
+        self._mj.mj_kinematics(r.model, d)
+        self._mj.mj_comPos(r.model, d)
 
     def task_columns(self, jac_full: np.ndarray) -> np.ndarray:
         """Columns (3, Q) of a Jacobian over all dofs (3, nv) in task coordinates (at the last q)."""
@@ -131,8 +139,9 @@ class Kinematics:
         J = r.num_joints
         jac = np.empty((jac_full.shape[0], r.dim))
         jac[:, :J] = jac_full[:, r.dof]
-        if r.gripper is not None:
-            jac[:, J] = (jac_full[:, r.gripper_dof] * r.ratios).sum(axis=1) / r.gripper.dc_da(self._angle)
+        if r.gripper is not None:  # chain rule through q_i = ratios_i a(c): sum_i ratios_i J_i / (dc/da)
+            cols = jac_full[:, r.gripper_dof]
+            jac[:, J] = (cols.sum(axis=1) if self._unit_ratios else (cols * r.ratios).sum(axis=1)) / self._slope
         return jac
 
     # ---------------------------------------------------------------- at the current pose
@@ -148,12 +157,12 @@ class Kinematics:
         if frame.kind == "site":
             mj.mj_jacSite(m, d, self._jac_a, None, int(frame.ids[0]))
             acc = self._jac_a
-            if len(frame.ids) > 1:
+            if len(frame.ids) > 1:  # the mean of the sites' Jacobians
                 acc = self._jac_a.copy()
                 for k in frame.ids[1:]:
                     mj.mj_jacSite(m, d, self._jac_b, None, int(k))
-                    acc = acc + self._jac_b
-                acc = acc * (1.0 / len(frame.ids))
+                    acc += self._jac_b
+                acc *= 1.0 / len(frame.ids)
         else:
             mj.mj_jacBody(m, d, self._jac_a, None, int(frame.ids[0]))
             acc = self._jac_a
