@@ -102,3 +102,25 @@ def test_video_frames_or_skip(arm, tiny):
     frames = rec.close()
     assert frames.shape == (6, 48, 64, 3)  # 0.2 s at 25 fps, and the first frame
     assert frames.std() > 1.0  # not a blank image
+
+
+def test_importing_the_kit_does_not_import_mujoco():
+    import subprocess
+    import sys
+
+    code = "import sys, corl.mujoco; print('mujoco' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+def test_servo_and_controller_errors(arm, tiny):
+    from corl.mujoco import add_servos
+
+    spec = load_spec(tiny.xml, moving=tiny.joints)
+    with pytest.raises(InputError, match="kp has 2 values, expected one per joint"):
+        add_servos(spec, tiny.joints, (1.0, 2.0), tiny.kv, (1.0, 1.0, 1.0))
+    bare = Robot.from_spec(load_spec(tiny.xml, moving=tiny.joints), tiny.joints)
+    with pytest.raises(InputError, match="no actuator named 'servo_j1'"):
+        PDController(bare, tiny.kp, tiny.kv)
+    with pytest.raises(InputError, match=r"reference has shape \(5, 3\), expected \(N, 4\)"):
+        track(arm, PDController(arm, tiny.kp, tiny.kv), np.zeros((5, 3)), 0.01)
