@@ -1,5 +1,10 @@
 """Offscreen video of a rollout: MuJoCo's renderer (``MUJOCO_GL=egl`` on a machine without a display).
 
+MuJoCo reads ``MUJOCO_GL`` once, when it is first imported, and then fails to import at all if
+that backend's library is missing; so the kit never sets it: set it in the environment
+(``MUJOCO_GL=egl corl run ...``). Without it and without a display, making a renderer raises, and
+``corl run`` / ``corl report`` skip the video and keep the results.
+
 :class:`FrameRecorder` is an ``on_step`` hook for :func:`corl.mujoco.track` that grabs frames at a
 given rate; :func:`caption` burns a caption in; :func:`write_side_by_side` puts two trials (the
 demonstration and the learned motion) next to each other in one MP4 (GIF without ffmpeg).
@@ -40,7 +45,6 @@ class Camera:
 
 def rendering_available() -> tuple[bool, str]:
     """``(True, "")`` when an offscreen OpenGL context can be made, else ``(False, reason)``."""
-    os.environ.setdefault("MUJOCO_GL", "egl")
     try:
         import mujoco
 
@@ -65,7 +69,6 @@ class FrameRecorder:
     """
 
     def __init__(self, model, camera: Camera, *, fps: int = 25, width: int = 480, height: int = 360) -> None:
-        os.environ.setdefault("MUJOCO_GL", "egl")
         import mujoco
 
         self.renderer = mujoco.Renderer(model, height=height, width=width)
