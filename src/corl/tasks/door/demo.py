@@ -24,6 +24,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from corl.errors import InputError
+from corl.mujoco import Target, piecewise_linear, solve_ik, solve_waypoints
 from corl.tasks.door.kinematics import Kinematics
 from corl.tasks.door.scene import DoorScene, load_scene
 
@@ -102,17 +103,18 @@ class DoorDemonstration:
 
     def reference(self, dt: float = CONTROL_DT) -> np.ndarray:
         """Dense reference (N, 8) at ``dt``, piecewise linear between the knots, N = duration/dt + 1."""
-        t = np.arange(int(round(self.duration / dt)) + 1) * dt
-        return np.stack([np.interp(t, self.times, self.knots[:, j]) for j in range(8)], axis=1)
+        return piecewise_linear(self.times, self.knots, self.duration, dt)
+
+
+def _target(scene: DoorScene, wp: Waypoint) -> Target:
+    """Contact point on the bar (backed off along the approach, offset), palm square to it, width."""
+    rot = grasp_rotation(wp.phi, wp.alpha)
+    target = scene.handle_point(wp.r, wp.phi, wp.alpha) - wp.backoff * rot[:, 0]
+    return Target(target + np.asarray(wp.offset), rot, gripper=wp.width)
 
 
 def _solve(kin: Kinematics, wp: Waypoint, q_seed: np.ndarray) -> np.ndarray:
-    scene = kin.scene
-    rot = grasp_rotation(wp.phi, wp.alpha)
-    target = scene.handle_point(wp.r, wp.phi, wp.alpha) - wp.backoff * rot[:, 0]
-    target = target + np.asarray(wp.offset)
-    q0 = np.concatenate([q_seed[:7], [wp.width]])
-    return kin.ik(target, rot, q0)
+    return solve_ik(kin, kin.pads, _target(kin.scene, wp), q_seed, rotation_frame=kin.hand)
 
 
 def _waypoints(r: float, width: float) -> list[Waypoint]:
@@ -138,16 +140,12 @@ def scripted_demonstration(scene: DoorScene | None = None, *, r: float = DEMO_GR
     kin = Kinematics(scene or load_scene())
     wps = _waypoints(r, width)
     grasp = next(i for i, wp in enumerate(wps) if wp.contact)
-    knots = [None] * len(wps)
-    knots[grasp] = _solve(kin, wps[grasp], _SEED)
     # Walk outwards from the grasp so neighbouring knots stay on one IK branch.
-    for i in range(grasp + 1, len(wps)):
-        knots[i] = _solve(kin, wps[i], knots[i - 1])
-    for i in range(grasp - 1, -1, -1):
-        knots[i] = _solve(kin, wps[i], knots[i + 1])
+    knots = solve_waypoints(kin, kin.pads, [_target(kin.scene, wp) for wp in wps], _SEED, start=grasp,
+                            rotation_frame=kin.hand)
     closed = next(wp for wp in wps if wp.contact and wp.width == width)
     return DoorDemonstration(waypoints=tuple(wps), times=np.array([wp.time for wp in wps]),
-                             knots=np.array(knots), t_contact=closed.time,
+                             knots=knots, t_contact=closed.time,
                              theta=np.array([0.0, width]))
 
 

@@ -24,11 +24,8 @@ Only the fingertips and the palm collide, and only with the door and its handle.
 from __future__ import annotations
 
 import functools
-import itertools
 import math
-import re
 from dataclasses import dataclass, field
-from importlib import metadata
 from pathlib import Path
 
 import numpy as np
@@ -43,6 +40,7 @@ __all__ = [
     "DoorScene",
     "load_scene",
     "pr2_description_dir",
+    "pr2_gripper",
     "width_of_angle",
     "angle_of_width",
 ]
@@ -149,6 +147,7 @@ class DoorScene:
     Attributes
     ----------
     model : mujoco.MjModel (shared; do not mutate)
+    robot : corl.mujoco.Robot, q = 7 arm joints + the gripper width
     geometry : DoorGeometry
     arm_qpos, arm_dof : (7,) int arrays, qpos and dof addresses of the arm joints
     finger_qpos, finger_dof : int, the driven finger joint
@@ -167,6 +166,7 @@ class DoorScene:
     """
 
     model: object
+    robot: object
     geometry: DoorGeometry
     arm_qpos: np.ndarray
     arm_dof: np.ndarray
@@ -216,57 +216,31 @@ class DoorScene:
 
 def pr2_description_dir() -> Path:
     """Folder of the PR2 description inside the installed ``example-robot-data`` wheel."""
-    try:
-        dist = metadata.distribution("example-robot-data")
-    except metadata.PackageNotFoundError:
-        raise InputError("the door task needs the 'example-robot-data' package "
-                         "(pip install example-robot-data==6.0.0)") from None
-    root = Path(dist.locate_file("cmeel.prefix/share/example-robot-data/robots/pr2_description"))
+    from corl.mujoco import example_robot_dir
+
+    root = example_robot_dir("pr2_description")
     if not (root / "urdf" / "pr2.urdf").is_file():
         raise InputError(f"no PR2 URDF under {root}; reinstall example-robot-data")
     return root
 
 
-def _pr2_urdf_text() -> str:
-    """The PR2 URDF with absolute mesh paths, all joints but the right arm's locked, no visuals."""
-    root = pr2_description_dir()
-    text = (root / "urdf" / "pr2.urdf").read_text()
-    text = text.replace("package://example-robot-data/robots/pr2_description/meshes/",
-                        f"{root}/meshes/")
-
-    def lock(match):
-        return match.group(0) if match.group(1) in _MOVING_JOINTS else \
-            f'<joint name="{match.group(1)}" type="fixed"'
-
-    text = re.sub(r'<joint name="([^"]*)" type="([^"]*)"', lock, text)
-    for block in ("visual", "gazebo", "transmission"):
-        text = re.sub(rf"<{block}\b.*?</{block}>", "", text, flags=re.S)
-    text = re.sub(r"<mimic[^>]*/>", "", text)
-    counter = itertools.count()
-    text = re.sub(r"<collision>", lambda _: f'<collision name="collision{next(counter)}">', text)
-    return re.sub(r"(<robot [^>]*>)",
-                  r'\1<mujoco><compiler strippath="false" fusestatic="true" balanceinertia="true"/>'
-                  r"</mujoco>", text, count=1)
-
-
 def _pr2_mjcf_text() -> str:
-    """The locked PR2 as MJCF with its fixed links fused into their moving parents.
+    """The PR2 with all joints but the right arm's and gripper's locked, as MJCF (fixed links fused:
+    the palm and everything rigid on it become part of ``r_wrist_roll_link``)."""
+    from corl.mujoco import urdf_to_mjcf
 
-    MuJoCo 3.3.0 stops fusing static bodies once an MjSpec gains any actuator, sensor, equality
-    or light, so the URDF is compiled once on its own and saved back as MJCF, which is then
-    edited. The palm and everything rigid on it become part of ``r_wrist_roll_link``.
-    """
-    import os
-    import tempfile
+    root = pr2_description_dir()
+    return urdf_to_mjcf((root / "urdf" / "pr2.urdf").read_text(), moving=_MOVING_JOINTS,
+                        package_dirs={"package://example-robot-data/robots/pr2_description/": root})
 
-    import mujoco
 
-    model = mujoco.MjModel.from_xml_string(_pr2_urdf_text())
-    with tempfile.TemporaryDirectory() as folder:
-        path = os.path.join(folder, "pr2.xml")
-        mujoco.mj_saveLastXML(path, model)
-        with open(path) as f:
-            return f.read()
+def pr2_gripper():
+    """The PR2 gripper as one coordinate, the width between the pads (m): the driven finger joint
+    and its three followers all sit at ``angle_of_width(width)``."""
+    from corl.mujoco import Gripper
+
+    return Gripper((DRIVEN_FINGER_JOINT,) + FOLLOWER_FINGER_JOINTS, angle_of=angle_of_width, slope=dwidth_dangle,
+                   lower=0.0, upper=float(width_of_angle(FINGER_ANGLE_MAX)))
 
 
 _HAND_BIT = 2
@@ -276,6 +250,8 @@ WRIST_BODY = "r_wrist_roll_link"
 
 def _build_spec(geometry: DoorGeometry):
     import mujoco
+
+    from corl.mujoco import add_force_sensor, add_servos
 
     g = geometry
     spec = mujoco.MjSpec.from_string(_pr2_mjcf_text())
@@ -310,15 +286,11 @@ def _build_spec(geometry: DoorGeometry):
     spec.body("r_gripper_r_finger_tip_link").add_site(name="pad_r", pos=[PAD_X, -PAD_INNER_Y, 0],
                                                       size=[0.003, 0, 0])
     spec.body(WRIST_BODY).add_site(name="wrist_ft", pos=[0, 0, 0], size=[0.005, 0, 0])
-    spec.add_sensor(name="wrist_force", type=mujoco.mjtSensor.mjSENS_FORCE,
-                    objtype=mujoco.mjtObj.mjOBJ_SITE, objname="wrist_ft")
-    spec.add_sensor(name="wrist_torque", type=mujoco.mjtSensor.mjSENS_TORQUE,
-                    objtype=mujoco.mjtObj.mjOBJ_SITE, objname="wrist_ft")
+    add_force_sensor(spec, "wrist_ft")
 
     # --- actuators: position servos (PD, with kv integrated implicitly), torque-limited
-    for name, kp, kv, eff in zip(ARM_JOINTS, ARM_KP, ARM_KV, ARM_EFFORT):
-        _add_servo(spec, name, kp, kv, eff)
-    _add_servo(spec, DRIVEN_FINGER_JOINT, GRIPPER_KP, GRIPPER_KV, GRIPPER_EFFORT)
+    add_servos(spec, ARM_JOINTS, ARM_KP, ARM_KV, ARM_EFFORT)
+    add_servos(spec, (DRIVEN_FINGER_JOINT,), (GRIPPER_KP,), (GRIPPER_KV,), (GRIPPER_EFFORT,))
 
     # --- the door: hinge on the robot's right, opening towards the robot
     x_face = -0.05 + g.door_distance           # right shoulder pan axis is at x = -0.05
@@ -353,20 +325,6 @@ def _build_spec(geometry: DoorGeometry):
     return spec, x_face, hinge_y
 
 
-def _add_servo(spec, joint: str, kp: float, kv: float, effort: float) -> None:
-    import mujoco
-
-    act = spec.add_actuator(name=f"servo_{joint}", target=joint,
-                            trntype=mujoco.mjtTrn.mjTRN_JOINT)
-    act.gaintype = mujoco.mjtGain.mjGAIN_FIXED
-    act.biastype = mujoco.mjtBias.mjBIAS_AFFINE
-    act.gainprm[0] = kp
-    act.biasprm[0:3] = [0.0, -kp, -kv]
-    act.forcelimited = True
-    act.forcerange = [-effort, effort]
-    act.ctrllimited = False
-
-
 @functools.lru_cache(maxsize=4)
 def load_scene(geometry: DoorGeometry | None = None) -> DoorScene:
     """Compile the door scene (cached per process and geometry; about 0.03 s the first time).
@@ -376,6 +334,8 @@ def load_scene(geometry: DoorGeometry | None = None) -> DoorScene:
     DoorScene
     """
     import mujoco
+
+    from corl.mujoco import Robot
 
     geometry = geometry or DoorGeometry()
     spec, x_face, hinge_y = _build_spec(geometry)
@@ -397,11 +357,12 @@ def load_scene(geometry: DoorGeometry | None = None) -> DoorScene:
     upper = model.jnt_range[arm, 1].copy()
     unlimited = model.jnt_limited[arm] == 0
     lower[unlimited], upper[unlimited] = -np.inf, np.inf
-    force_sensor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, "wrist_force")
-    torque_sensor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, "wrist_torque")
+    force_sensor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, "wrist_ft_force")
+    torque_sensor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, "wrist_ft_torque")
     ft_site = sid("wrist_ft")
     return DoorScene(
         model=model,
+        robot=Robot.from_model(model, ARM_JOINTS, pr2_gripper()),
         geometry=geometry,
         arm_qpos=model.jnt_qposadr[arm].copy(),
         arm_dof=model.jnt_dofadr[arm].copy(),

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from corl.tasks.door.controller import PDController, dense_reference
+from corl.tasks.door.controller import PDController
 from corl.tasks.door.scene import DoorScene, load_scene
 
 __all__ = ["RolloutResult", "rollout", "OPEN_THRESHOLD", "FORCE_SCALE", "HOLD_DISTANCE"]
@@ -104,7 +104,7 @@ def _bar_distance(scene: DoorScene, data, point: np.ndarray) -> float:
 
 def rollout(reference, *, duration: float = 5.0, t_contact: float | None = None,
             scene: DoorScene | None = None, data=None, on_frame=None, frame_every: int = 20) -> RolloutResult:
-    """Simulate one trial of tracking ``reference``.
+    """Simulate one trial of tracking ``reference`` (:func:`corl.mujoco.track`).
 
     Parameters
     ----------
@@ -120,26 +120,12 @@ def rollout(reference, *, duration: float = 5.0, t_contact: float | None = None,
     -------
     RolloutResult
     """
-    import mujoco
+    from corl.mujoco import remove_static_load, touching, track
 
     scene = scene or load_scene()
     model = scene.model
     dt = model.opt.timestep
-    if data is None:
-        data = mujoco.MjData(model)
-    else:
-        mujoco.mj_resetData(model, data)
-    ctrl = PDController(scene)
-    q_ref, dq_ref = dense_reference(reference, duration, dt)
-    u = ctrl.setpoints(q_ref, dq_ref)
-    ctrl.initialise(data, q_ref[0])
-    data.eq_active[scene.latch_eq] = 1
-    data.ctrl[:] = u[0]
-    mujoco.mj_forward(model, data)
-    ctrl.compensate(data)  # so the first logged sensor reading already sees a supported arm
-    mujoco.mj_forward(model, data)
-
-    n = len(q_ref)
+    n = int(round(duration / dt)) + 1
     hinge, handle = np.empty(n), np.empty(n)
     force_raw = np.empty((n, 3))
     rot_ft = np.empty((n, 3, 3))
@@ -149,17 +135,15 @@ def rollout(reference, *, duration: float = 5.0, t_contact: float | None = None,
     latch, latch_angle = scene.latch_eq, scene.geometry.latch_angle
     hq, haq, fa = scene.hinge_qpos, scene.handle_qpos, scene.force_adr
     site = scene.ft_site
-    t_release = np.nan
-    first_touch = np.nan
-    released = False
-    for k in range(n):
-        if k > 0:
-            data.ctrl[:] = u[k]
-            ctrl.compensate(data)
-            mujoco.mj_step(model, data)
-            if not released and data.qpos[haq] > latch_angle:
-                data.eq_active[latch] = 0
-                released, t_release = True, k * dt
+    state = {"released": False, "t_release": np.nan, "first_touch": np.nan}
+
+    def latch_on(data):
+        data.eq_active[latch] = 1
+
+    def step(k, data):
+        if k > 0 and not state["released"] and data.qpos[haq] > latch_angle:
+            data.eq_active[latch] = 0  # the latch lets go, for the rest of the trial
+            state["released"], state["t_release"] = True, k * dt
         hinge[k] = data.qpos[hq]
         handle[k] = data.qpos[haq]
         force_raw[k] = data.sensordata[fa:fa + 3]
@@ -167,18 +151,18 @@ def rollout(reference, *, duration: float = 5.0, t_contact: float | None = None,
         if on_frame is not None and k % frame_every == 0:
             on_frame(k * dt, data)
         if k % _SAMPLE_EVERY == 0:
-            touch = _pad_touches(data, pads, bar)
-            if touch and np.isnan(first_touch):
-                first_touch = k * dt
+            touch = touching(data, pads, bar)
+            if touch and np.isnan(state["first_touch"]):
+                state["first_touch"] = k * dt
             grip_t.append(k * dt)
             grip_touch.append(touch)
             grip_d.append(_bar_distance(scene, data, data.site_xpos[scene.pad_sites].mean(axis=0)))
 
+    track(scene.robot, PDController(scene), reference, duration, data=data, prepare=latch_on, on_step=step)
+    t_release, first_touch = state["t_release"], state["first_touch"]
+
     times = np.arange(n) * dt
-    # Static load of the hand in the sensor frame: the sensor reads m g (world -z) as the force
-    # the hand's parent holds it with, i.e. +m g z_world expressed in the site frame.
-    weight = np.array([0.0, 0.0, scene.hand_mass * -model.opt.gravity[2]])
-    force = np.linalg.norm(force_raw - np.einsum("kji,j->ki", rot_ft, weight), axis=1)
+    force = np.linalg.norm(remove_static_load(force_raw, rot_ft, scene.hand_mass, model.opt.gravity), axis=1)
 
     t_window = t_contact if t_contact is not None else first_touch
     grip_t, grip_d, grip_touch = np.array(grip_t), np.array(grip_d), np.array(grip_touch)
@@ -196,12 +180,3 @@ def rollout(reference, *, duration: float = 5.0, t_contact: float | None = None,
                          held=held, pad_contact_fraction=contact_fraction, force_mean=f_mean,
                          force_max=f_max, info={"first_touch": float(first_touch),
                                                 "force_raw": force_raw})
-
-
-def _pad_touches(data, pads: np.ndarray, bar: np.ndarray) -> bool:
-    ncon = data.ncon
-    if ncon == 0:
-        return False
-    geoms = data.contact.geom[:ncon]
-    return bool(np.any((np.isin(geoms[:, 0], pads) & np.isin(geoms[:, 1], bar))
-                       | (np.isin(geoms[:, 1], pads) & np.isin(geoms[:, 0], bar))))

@@ -115,26 +115,14 @@ class DoorTask:
         return self._cost.residuals(w)
 
     def _fk(self, wp, theta):
-        rot_target = grasp_rotation(wp.phi, wp.alpha)
-        kin, scene = self.kin, self.scene
-        import mujoco
+        """Eq. 6 at one contact: contact point (3,), palm orientation error (3,, weighted; the
+        small-angle Jacobian, exact at the target), gripper width (1,)."""
+        from corl.mujoco import coordinate_feature, orientation_feature, position_feature, stack
 
-        jac_rot = np.zeros((3, scene.model.nv))
-
-        def fk(q):
-            pos, jac = kin.contact_point_jacobian(q)
-            mujoco.mj_jacBody(scene.model, kin.data, None, jac_rot, scene.wrist_body)
-            rot = kin.data.xmat[scene.wrist_body].reshape(3, 3)
-            from corl.tasks.door.kinematics import rotation_error
-
-            y = np.concatenate([pos, -ROT_WEIGHT * rotation_error(rot_target, rot), [q[7]]])
-            J = np.zeros((7, 8))
-            J[:3] = jac
-            J[3:6, :7] = ROT_WEIGHT * jac_rot[:, scene.arm_dof]
-            J[6, 7] = 1.0
-            return y, J
-
-        return fk
+        kin = self.kin
+        return stack(position_feature(kin, kin.pads),
+                     orientation_feature(kin, kin.hand, grasp_rotation(wp.phi, wp.alpha), weight=ROT_WEIGHT, exact=False),
+                     coordinate_feature(8, 7))
 
     def _targets(self, wp, theta) -> np.ndarray:
         r = wp.r + float(theta[0])

@@ -1,0 +1,44 @@
+"""A MuJoCo kit for any robot: from an MJCF or URDF to the pieces of a CORL task.
+
+==============================  ================================================================
+step                            functions
+==============================  ================================================================
+load, lock joints, gripper      :func:`load_spec`, :class:`Gripper`, :class:`Robot`,
+                                :func:`example_robot_dir`
+forward kinematics (Eq. 6)      :class:`Kinematics` (``site``, ``body``, ``position_jacobian``,
+                                ``rotation_jacobian``), :func:`rotation_error`
+Eq. 6 features                  :func:`position_feature`, :func:`orientation_feature`,
+                                :func:`coordinate_feature`, :func:`stack`
+demonstration                   :class:`Target`, :func:`solve_ik`, :func:`solve_waypoints`,
+                                :func:`fit_demonstration`, :func:`project_demonstration`
+rollout                         :func:`add_servos`, :class:`PDController`, :func:`track`
+forces                          :func:`add_force_sensor`, :class:`ForceSensor`,
+                                :func:`contact_force`, :func:`touching`
+video                           :class:`Camera`, :class:`FrameRecorder`, :func:`caption`,
+                                :func:`write_side_by_side`, :func:`rendering_available`
+==============================  ================================================================
+
+Every module imports MuJoCo only inside the functions that need it, so ``import corl.mujoco`` is
+as light as numpy. ``examples/panda_switch.py`` builds a whole task with it; the PR2 door
+(:mod:`corl.tasks.door`) uses it too.
+"""
+
+from corl.mujoco.control import PDController, add_servo, add_servos, dense_reference, track
+from corl.mujoco.demo import ProjectionReport, fit_demonstration, piecewise_linear, project_demonstration
+from corl.mujoco.features import coordinate_feature, orientation_feature, position_feature, stack
+from corl.mujoco.forces import ForceSensor, add_force_sensor, contact_force, remove_static_load, touching
+from corl.mujoco.ik import Target, solve_ik, solve_waypoints
+from corl.mujoco.kinematics import Frame, Kinematics, rotation_error, rotation_error_jacobian, skew
+from corl.mujoco.robot import Gripper, Robot, example_robot_dir, load_spec, urdf_to_mjcf
+from corl.mujoco.video import Camera, FrameRecorder, caption, rendering_available, write_side_by_side
+
+__all__ = [
+    "Gripper", "Robot", "load_spec", "urdf_to_mjcf", "example_robot_dir",
+    "Frame", "Kinematics", "rotation_error", "rotation_error_jacobian", "skew",
+    "position_feature", "orientation_feature", "coordinate_feature", "stack",
+    "Target", "solve_ik", "solve_waypoints",
+    "piecewise_linear", "fit_demonstration", "ProjectionReport", "project_demonstration",
+    "add_servo", "add_servos", "dense_reference", "PDController", "track",
+    "add_force_sensor", "ForceSensor", "remove_static_load", "contact_force", "touching",
+    "Camera", "FrameRecorder", "caption", "write_side_by_side", "rendering_available",
+]

@@ -1,0 +1,199 @@
+"""Track a joint reference with PD servos and gravity compensation (the policy of Sec. V-A).
+
+Glossary
+--------
+q_ref, dq_ref  (N, Q) reference configurations at the control step and their velocities
+u              (N, J + 1) or (N, J) servo set-points written to ``data.ctrl[actuators]``: the
+               robot joints, then the gripper's driven angle
+kp, kv         (J,) servo gains (Nm/rad, Nms/rad or N/m, Ns/m); effort (J,) the torque limits
+tau            a servo's torque: ``kp (u - q) - kv dq``, clipped to its effort limit
+
+The PD law is realised by MuJoCo position servos (:func:`add_servos`), whose damping the implicit
+integrator (``implicitfast``) treats implicitly, so stiff gains stay stable at 500 Hz. The
+reference velocity enters as a set-point lead ``u = q_ref + (kv / kp) dq_ref``, which makes the
+servo torque exactly ``kp (q_ref - q) + kv (dq_ref - dq)``. Gravity and Coriolis forces of the
+robot are cancelled by ``qfrc_applied = qfrc_bias`` on its dofs (as a real arm's controller does),
+so the servos only see the tracking error and the contact forces.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, Sequence
+
+import numpy as np
+
+from corl.errors import InputError
+from corl.mujoco.robot import Robot
+
+__all__ = ["add_servo", "add_servos", "dense_reference", "PDController", "track"]
+
+
+def add_servo(spec, joint: str, kp: float, kv: float, effort: float) -> None:
+    """Add a position servo ``servo_<joint>`` on ``joint`` to ``spec`` (a mujoco.MjSpec).
+
+    Its torque is ``kp (ctrl - q) - kv dq`` clipped to ``[-effort, effort]``; the set-point
+    ``ctrl`` is unlimited.
+    """
+    import mujoco
+
+    if not (kp > 0 and kv >= 0 and effort > 0):
+        raise InputError(f"servo on {joint!r} needs kp > 0, kv >= 0, effort > 0; got {kp}, {kv}, {effort}")
+    act = spec.add_actuator(name=f"servo_{joint}", target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    act.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+    act.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+    act.gainprm[0] = kp
+    act.biasprm[0:3] = [0.0, -kp, -kv]
+    act.forcelimited = True
+    act.forcerange = [-effort, effort]
+    act.ctrllimited = False
+
+
+def add_servos(spec, joints: Sequence[str], kp: Sequence[float], kv: Sequence[float],
+               effort: Sequence[float]) -> None:
+    """:func:`add_servo` on each of ``joints`` with its gain and limit (all (J,))."""
+    joints = list(joints)
+    for name, values in (("kp", kp), ("kv", kv), ("effort", effort)):
+        if len(values) != len(joints):
+            raise InputError(f"{name} has {len(values)} values, expected one per joint ({len(joints)})")
+    for j, p, v, e in zip(joints, kp, kv, effort):
+        add_servo(spec, j, float(p), float(v), float(e))
+
+
+def dense_reference(reference, duration: float, dt: float, dim: int) -> tuple[np.ndarray, np.ndarray]:
+    """Sample a reference at the control rate.
+
+    Parameters
+    ----------
+    reference : (N, Q) array at ``dt`` (a shorter array holds its last row), or a callable
+        ``t -> (Q,)``.
+    duration, dt : s.
+    dim : Q.
+
+    Returns
+    -------
+    q_ref : (K + 1, Q), dq_ref : (K + 1, Q) with K = round(duration / dt) (finite differences).
+    """
+    n = int(round(duration / dt)) + 1
+    if callable(reference):
+        q_ref = np.array([reference(k * dt) for k in range(n)], dtype=float)
+    else:
+        q_ref = np.asarray(reference, dtype=float)
+        if q_ref.ndim != 2 or q_ref.shape[1] != dim:
+            raise InputError(f"reference has shape {q_ref.shape}, expected (N, {dim}): one configuration q "
+                             "per control step")
+        if len(q_ref) < n:
+            q_ref = np.vstack([q_ref, np.repeat(q_ref[-1:], n - len(q_ref), axis=0)])
+        q_ref = q_ref[:n]
+    if q_ref.shape[1:] != (dim,):
+        raise InputError(f"the reference gives configurations of shape {q_ref.shape[1:]}, expected ({dim},)")
+    if not np.all(np.isfinite(q_ref)):
+        raise InputError("reference contains NaN or inf")
+    dq_ref = np.gradient(q_ref, dt, axis=0) if n > 1 else np.zeros_like(q_ref)
+    return q_ref, dq_ref
+
+
+class PDController:
+    """Set-points for a robot's servos and gravity compensation.
+
+    Parameters
+    ----------
+    robot : Robot
+    kp, kv : (J,) gains of the robot joints' servos (the same as in :func:`add_servos`); only
+        their ratio, the set-point lead, is used here.
+    actuators : names of the servos in q's order (robot joints, then the gripper's driven joint);
+        default ``servo_<joint>`` as :func:`add_servos` names them.
+    """
+
+    def __init__(self, robot: Robot, kp: Sequence[float], kv: Sequence[float],
+                 actuators: Sequence[str] | None = None) -> None:
+        import mujoco
+
+        kp, kv = np.asarray(kp, dtype=float), np.asarray(kv, dtype=float)
+        J = robot.num_joints
+        if kp.shape != (J,) or kv.shape != (J,) or np.any(kp <= 0):
+            raise InputError(f"kp and kv need one value per robot joint ({J},), kp > 0")
+        self.robot = robot
+        self._lead = kv / kp
+        self._comp_dofs = robot.dofs
+        if actuators is None:
+            actuators = [f"servo_{n}" for n in robot.joints] + ([f"servo_{robot.gripper.joints[0]}"] if robot.gripper else [])
+        ids = [mujoco.mj_name2id(robot.model, mujoco.mjtObj.mjOBJ_ACTUATOR, a) for a in actuators]
+        missing = [a for a, k in zip(actuators, ids) if k < 0]
+        if missing:
+            raise InputError(f"no actuator named {missing[0]!r}; add the servos with corl.mujoco.add_servos")
+        self.actuators = np.array(ids, dtype=int)
+        # all actuators in q's order: write data.ctrl whole (cheaper than an index)
+        self._whole = bool(len(ids) == robot.model.nu and np.array_equal(ids, np.arange(len(ids))))
+
+    def setpoints(self, q_ref: np.ndarray, dq_ref: np.ndarray) -> np.ndarray:
+        """Servo set-points u (N, J [+1]) for a reference (N, Q): joint lead, gripper angle."""
+        J = self.robot.num_joints
+        u = np.empty((q_ref.shape[0], len(self.actuators)))
+        u[:, :J] = q_ref[:, :J] + self._lead * dq_ref[:, :J]
+        if self.robot.gripper is not None:
+            u[:, J] = self.robot.gripper.angle(q_ref[:, J])
+        return u
+
+    def apply(self, data, u: np.ndarray) -> None:
+        """Write one row of set-points (J [+1],) to ``data.ctrl``."""
+        if self._whole:
+            data.ctrl[:] = u
+        else:
+            data.ctrl[self.actuators] = u
+
+    def compensate(self, data) -> None:
+        """Cancel gravity and Coriolis forces on the robot's dofs (``qfrc_applied = qfrc_bias``)."""
+        data.qfrc_applied[self._comp_dofs] = data.qfrc_bias[self._comp_dofs]
+
+    def initialise(self, data, q0: np.ndarray) -> None:
+        """Put the robot at ``q0`` (Q,), at rest."""
+        self.robot.write(data, q0)
+        data.qvel[:] = 0.0
+
+
+def track(robot: Robot, controller: PDController, reference, duration: float, *, data=None,
+          prepare: Callable | None = None, on_step: Callable | None = None):
+    """Simulate tracking ``reference`` from rest at its first configuration.
+
+    Each control step (the simulation step) sets the set-points, cancels gravity, steps, and calls
+    ``on_step(k, data)`` (also at k = 0, before the first step).
+
+    Parameters
+    ----------
+    robot, controller : the robot and its :class:`PDController`.
+    reference : (N, Q) at the model's timestep, or callable ``t -> (Q,)``; see :func:`dense_reference`.
+    duration : s.
+    data : a ``mujoco.MjData`` to reuse (it is reset), optional.
+    prepare : ``prepare(data)`` after the robot is placed, before the first ``mj_forward``
+        (e.g. to activate an equality or place an object).
+    on_step : ``on_step(k, data)``: log, switch a latch, stop nothing.
+
+    Returns
+    -------
+    data : the final mujoco.MjData; q_ref : (K + 1, Q) the reference as tracked.
+    """
+    import mujoco
+
+    model = robot.model
+    dt = model.opt.timestep
+    if data is None:
+        data = mujoco.MjData(model)
+    else:
+        mujoco.mj_resetData(model, data)
+    q_ref, dq_ref = dense_reference(reference, duration, dt, robot.dim)
+    u = controller.setpoints(q_ref, dq_ref)
+    controller.initialise(data, q_ref[0])
+    if prepare is not None:
+        prepare(data)
+    controller.apply(data, u[0])
+    mujoco.mj_forward(model, data)
+    controller.compensate(data)  # so the first logged sensor reading already sees a supported arm
+    mujoco.mj_forward(model, data)
+    for k in range(len(q_ref)):
+        if k > 0:
+            controller.apply(data, u[k])
+            controller.compensate(data)
+            mujoco.mj_step(model, data)
+        if on_step is not None:
+            on_step(k, data)
+    return data, q_ref

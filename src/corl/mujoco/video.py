@@ -1,0 +1,137 @@
+"""Offscreen video of a rollout: MuJoCo's renderer (``MUJOCO_GL=egl`` on a machine without a display).
+
+MuJoCo reads ``MUJOCO_GL`` once, when it is first imported, and then fails to import at all if
+that backend's library is missing; so the kit never sets it: set it in the environment
+(``MUJOCO_GL=egl corl run ...``). Without it and without a display, making a renderer raises, and
+``corl run`` / ``corl report`` skip the video and keep the results.
+
+:class:`FrameRecorder` is an ``on_step`` hook for :func:`corl.mujoco.track` that grabs frames at a
+given rate; :func:`caption` burns a caption in; :func:`write_side_by_side` puts two trials (the
+demonstration and the learned motion) next to each other in one MP4 (GIF without ffmpeg).
+:func:`rendering_available` says whether this machine can render at all, so that a run without
+OpenGL skips its video instead of failing.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["Camera", "FrameRecorder", "caption", "write_side_by_side", "rendering_available"]
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A free camera looking at ``lookat`` (3,) from ``distance`` m, ``azimuth`` and ``elevation`` deg."""
+
+    lookat: tuple = (0.0, 0.0, 0.5)
+    distance: float = 1.5
+    azimuth: float = -60.0
+    elevation: float = -25.0
+
+    def mjv(self):
+        """This camera as a ``mujoco.MjvCamera``."""
+        import mujoco
+
+        cam = mujoco.MjvCamera()
+        cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+        cam.lookat[:] = np.asarray(self.lookat, dtype=float)
+        cam.distance, cam.azimuth, cam.elevation = self.distance, self.azimuth, self.elevation
+        return cam
+
+
+def rendering_available() -> tuple[bool, str]:
+    """``(True, "")`` when an offscreen OpenGL context can be made, else ``(False, reason)``."""
+    try:
+        import mujoco
+
+        model = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='.1'/></worldbody></mujoco>")
+        renderer = mujoco.Renderer(model, height=8, width=8)
+        renderer.close()
+    except Exception as exc:  # no EGL / OSMesa library, or no GPU driver
+        return False, (f"{type(exc).__name__}: {exc}. Offscreen rendering needs EGL or OSMesa "
+                       "(Debian: libegl1 libgl1); set MUJOCO_GL=egl or osmesa")
+    return True, ""
+
+
+class FrameRecorder:
+    """Grab frames of a simulation: call it as ``on_step(k, data)``; close it when done.
+
+    Parameters
+    ----------
+    model : mujoco.MjModel
+    camera : Camera
+    fps : frames per second of simulated time
+    width, height : pixels
+    """
+
+    def __init__(self, model, camera: Camera, *, fps: int = 25, width: int = 480, height: int = 360) -> None:
+        import mujoco
+
+        self.renderer = mujoco.Renderer(model, height=height, width=width)
+        self.camera = camera.mjv()
+        self.every = max(1, int(round(1.0 / (fps * model.opt.timestep))))
+        self.frames: list[np.ndarray] = []
+
+    def grab(self, data) -> None:
+        """Render ``data`` now."""
+        self.renderer.update_scene(data, camera=self.camera)
+        self.frames.append(self.renderer.render().copy())
+
+    def __call__(self, k: int, data) -> None:
+        if k % self.every == 0:
+            self.grab(data)
+
+    def close(self) -> np.ndarray:
+        """Free the renderer; the frames (F, height, width, 3) uint8."""
+        self.renderer.close()
+        return np.stack(self.frames) if self.frames else np.zeros((0, 1, 1, 3), dtype=np.uint8)
+
+    def __enter__(self) -> "FrameRecorder":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.renderer.close()
+
+
+def caption(frames: np.ndarray, text: str) -> np.ndarray:
+    """Burn ``text`` into the top-left corner of every frame (F, H, W, 3) (matplotlib's rasteriser)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    h = 28
+    fig = Figure(figsize=(frames.shape[2] / 100, h / 100), dpi=100)
+    canvas = FigureCanvasAgg(fig)
+    fig.patch.set_facecolor("black")
+    fig.text(0.01, 0.5, text, color="white", va="center", fontsize=11)
+    canvas.draw()
+    banner = np.asarray(canvas.buffer_rgba())[:, :, :3]
+    out = frames.copy()
+    out[:, : banner.shape[0], : banner.shape[1]] = banner[: out.shape[1], : out.shape[2]]
+    return out
+
+
+def write_side_by_side(path: str | os.PathLike, left: np.ndarray, right: np.ndarray, fps: int = 25) -> Path:
+    """Write two frame stacks (F, H, W, 3) next to each other; MP4 when ffmpeg is there, else GIF."""
+    import imageio.v2 as imageio
+
+    n = max(len(left), len(right))
+
+    def pad(f):
+        return np.concatenate([f, np.repeat(f[-1:], n - len(f), axis=0)]) if len(f) < n else f
+
+    both = np.concatenate([pad(left), pad(right)], axis=2)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        imageio.mimwrite(path, list(both), fps=fps, macro_block_size=8)
+    except Exception:
+        path = path.with_suffix(".gif")
+        imageio.mimwrite(path, list(both), duration=1.0 / fps)
+    return path
