@@ -18,11 +18,11 @@ __all__ = ["check_export_path", "write_export"]
 def check_export_path(path) -> Path:
     """The export file ``path`` as a Path, or :class:`InputError` saying why it cannot be written."""
     path = Path(path)
+    if path.is_dir():
+        raise InputError(f"{path} is a folder; give --out a file name such as {path / 'trials.csv'}")
     if path.suffix not in (".csv", ".parquet"):
         raise InputError(f"export writes a .csv or .parquet file, got {path.name!r}; give --out a file name "
                          "ending in .csv or .parquet")
-    if path.is_dir():
-        raise InputError(f"{path} is a folder; give --out a file name such as {path / 'trials.csv'}")
     if not path.parent.is_dir():
         raise InputError(f"the folder {path.parent} to export into does not exist; create it first")
     for target in (path, path.with_suffix(".w.npz")):
