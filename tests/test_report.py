@@ -7,6 +7,7 @@ import os
 import re
 import shutil
 import subprocess
+import sys
 from html.parser import HTMLParser
 
 import numpy as np
@@ -208,18 +209,26 @@ def parse_dom_body(dom: str) -> dict:
     return page.body
 
 
-def test_task_that_cannot_be_loaded_still_gets_a_page(tmp_path):
+def test_a_task_that_cannot_be_loaded_is_refused_and_another_task_is_a_note(tmp_path, monkeypatch):
     store = tmp_path / "custom.corl"
     task = load_task("synthetic", seed=2)
     with RunStore(store) as db:
         run = StoredRun.start(db, task, task_spec="synthetic", method="CORL+PIBU", seed=2)
         run.run(task, max_trials=12)
     res = report(store, tmp_path / "rep", task="no_such_module_here:make_task")
+    assert res.exit_code == 2 and "cannot import task module 'no_such_module_here'" in res.stderr, res.output
+    assert not (tmp_path / "rep").exists()  # refused: no folder left behind
+    (tmp_path / "other.py").write_text("from corl.tasks.synthetic import SyntheticTask\n"
+                                       "class Other(SyntheticTask):\n    name = 'other'\n"
+                                       "def make():\n    return Other((0.6, 0.4))\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    res = report(store, tmp_path / "rep", task="other:make")
+    sys.modules.pop("other", None)
     assert res.exit_code == 0, res.output
     text = (tmp_path / "rep" / "run_1.html").read_text()
     page = parse(tmp_path / "rep" / "run_1.html")
     assert page.trial_rows == 12 and len(page.images) == 1  # the trials still show, with their returns
-    assert "Not shown" in text and "no_such_module_here:make_task" in text and "could not be loaded" in text
+    assert "Not shown" in text and "is not this run&#x27;s task &#x27;synthetic&#x27;" in text
 
 
 PWN = """

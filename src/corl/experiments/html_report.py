@@ -8,9 +8,9 @@ demonstration beside the learned motion.
 
 The learner is rebuilt by replaying the stored trials (:meth:`corl.session.StoredRun.open`) into a
 fresh learner on the task named on the command line (``corl report --task SPEC``); nothing named
-in the store is ever imported. Without ``--task``, or when that is impossible (another task, the
-software changed so the replay diverges), the page is still written from the stored trials alone,
-and says what is missing and why.
+in the store is ever imported. Without ``--task``, or when the replay is impossible (a run of
+another task, software that changed so the replay diverges), the page is still written from the
+stored trials alone, and says what is missing and why.
 
 Glossary
 --------
@@ -82,12 +82,7 @@ def _load_and_replay(db: RunStore, info: RunInfo, notes: list[str], log: Callabl
         notes.append("No task was named (corl report --task SPEC), so J, the motion-optimization curve, the "
                       "return map and a rendered video are missing; the trials below come from the store alone.")
         return None, None
-    try:
-        task = load_task(task_spec, seed=int(info.seed or 0))
-    except (CorlError, ImportError) as exc:
-        notes.append(f"The task '{task_spec}' could not be loaded here ({exc}), so J, the return map and a "
-                     "rendered video are missing; run 'corl report --task ...' where the task's module is importable.")
-        return None, None
+    task = load_task(task_spec, seed=int(info.seed or 0))  # a task named but not loadable: InputError
     if task.name != info.task:
         notes.append(f"The task given ('{task_spec}', named '{task.name}') is not this run's task '{info.task}', "
                      "so J, the return map and a rendered video are missing.")
@@ -291,7 +286,8 @@ def write_reports(store: str | Path, out: str | Path, *, run_id: int | None = No
     ``task_spec`` (``corl report --task``) names the task whose learner is rebuilt by replay; without
     it the pages show the stored data alone, and ``log`` says what they leave out.
     With more than one page, ``OUT/index.html`` lists them. Returns the paths written, index last.
-    Raises :class:`StoreError` for a missing or damaged store, an unknown run or an empty store.
+    Raises :class:`StoreError` for a missing or damaged store, an unknown run or an empty store, and
+    :class:`InputError` for a ``task_spec`` that cannot be loaded.
     """
     from corl.experiments.html_page import render_index, render_page
 
