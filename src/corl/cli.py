@@ -117,6 +117,7 @@ def bench_synthetic(
     if starts < 1:
         _fail("--starts must be at least 1")
     _check(seed=("--seed", seed), jobs=("--jobs", jobs), folder=("--out", out))
+    _track_new(out)
     t0 = time.perf_counter()
     with _tracker("bench synthetic", quiet=quiet, log=log, json_out=json_out) as tracker:
         for name in names:
@@ -178,6 +179,7 @@ def bench_door(
     if min(n1, n2) < 2:
         _fail(f"--grid needs at least 2 points per axis, got {grid!r}")
     _check(jobs=("--jobs", jobs), folder=("--out", out))
+    _track_new(out)
     t0 = time.perf_counter()
     with _tracker("bench door", quiet=quiet, log=log, json_out=json_out) as tracker:
         for name in names:
