@@ -14,6 +14,9 @@ from typing import Optional
 
 import typer
 
+from corl.arguments import NEW_PATHS, check, latest_run  # light: no numpy
+from corl.errors import CorlError
+
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="corl: learn a manipulation skill from one demonstration (Englert & Toussaint, RSS 2016).")
 bench_app = typer.Typer(no_args_is_help=True, help="Benchmarks that reproduce the paper's tables.")
@@ -22,35 +25,17 @@ app.add_typer(bench_app, name="bench")
 
 def _fail(message: str, code: int = 2) -> None:
     """Print ``error: message`` and exit; what the command created is removed while still empty."""
-    from corl.arguments import NEW_PATHS
-
     typer.echo(f"error: {message}", err=True)
     NEW_PATHS.remove_if_empty()
     raise typer.Exit(code)
 
 
-# -- arguments: every one is checked before the first rollout or file (corl.arguments) ----------
 def _check(**args) -> None:
-    """:func:`corl.arguments.check` of the arguments; the first bad one ends the command (exit 2)."""
-    from corl.arguments import check
-    from corl.errors import CorlError
-
+    """:func:`corl.arguments.check` of the arguments, before any rollout or file; the first bad one exits 2."""
     try:
         check(**args)
     except CorlError as exc:
         _fail(str(exc))
-
-
-def _track_new(*paths: Path) -> None:
-    from corl.arguments import NEW_PATHS
-
-    NEW_PATHS.track(*paths)
-
-
-def _latest_run(path: Path):
-    from corl.arguments import latest_run
-
-    return latest_run(path)
 
 
 def _method_list(methods: Optional[str], *, default: list[str], allowed) -> list[str]:
@@ -117,7 +102,7 @@ def bench_synthetic(
     if starts < 1:
         _fail("--starts must be at least 1")
     _check(seed=("--seed", seed), jobs=("--jobs", jobs), folder=("--out", out))
-    _track_new(out)
+    NEW_PATHS.track(out)
     t0 = time.perf_counter()
     with _tracker("bench synthetic", quiet=quiet, log=log, json_out=json_out) as tracker:
         for name in names:
@@ -179,7 +164,7 @@ def bench_door(
     if min(n1, n2) < 2:
         _fail(f"--grid needs at least 2 points per axis, got {grid!r}")
     _check(jobs=("--jobs", jobs), folder=("--out", out))
-    _track_new(out)
+    NEW_PATHS.track(out)
     t0 = time.perf_counter()
     with _tracker("bench door", quiet=quiet, log=log, json_out=json_out) as tracker:
         for name in names:
@@ -246,10 +231,10 @@ def run(
     _check(task=("TASK", task), seed=("--seed", seed), folder=("--out", out), store=("--store", store_path))
     if method is not None and method not in METHODS:
         _fail(f"unknown method '{method}'; choose from {', '.join(METHODS)}")
-    _track_new(out, store_path)
+    NEW_PATHS.track(out, store_path)
     t0 = time.perf_counter()
     try:
-        peeked = _latest_run(store_path) if resume else None  # read-only: the seed to build the task with
+        peeked = latest_run(store_path) if resume else None  # read-only: the seed to build the task with
         task_seed = (0 if seed is None else seed) if peeked is None else int(peeked.seed or 0)
         the_task = load_task(task, seed=task_seed)  # before any file is created
         db = _open_store(store_path)
@@ -337,9 +322,9 @@ def ask(
            folder=("--out", out))
     if method not in METHODS:
         _fail(f"unknown method '{method}'; choose from {', '.join(METHODS)}")
-    _track_new(store, *([out] if out is not None else []))
+    NEW_PATHS.track(store, *([out] if out is not None else []))
     try:
-        peeked = _latest_run(store)  # read-only: the seed to build the task with
+        peeked = latest_run(store)  # read-only: the seed to build the task with
         task_seed = seed if peeked is None else int(peeked.seed or 0)
         the_task = load_task(task, seed=task_seed)  # before any file is created
         with _open_store(store) as db:
@@ -502,7 +487,7 @@ def report(store: Path = typer.Option(..., help="run store"),
     from corl.experiments.html_report import write_reports
 
     _check(path=("--store", store), task=("--task", task), folder=("--out", out))
-    _track_new(out)
+    NEW_PATHS.track(out)
     with _tracker("report", quiet=quiet, log=True, json_out=json_out) as tracker:  # messages only
         try:
             pages = write_reports(store, out, run_id=run_id, video=video, log=tracker.message, task_spec=task)
