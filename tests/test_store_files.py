@@ -237,3 +237,20 @@ def test_damaged_fields_give_one_line(tmp_path, sql):
         lines = res.output.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith("error:") and "damaged" in lines[0], (args, res.output)
     assert dump(store) == before
+
+
+def test_unwritable_place_reads_without_creating_files(tmp_path, monkeypatch):
+    """Where chattr is unavailable: the same path taken when os.access says the place is not writable."""
+    import corl.store.sqlite as sqlite_module
+
+    store = filled(tmp_path / "run.corl", trials=2)
+    with sqlite3.connect(store) as db:
+        db.execute("PRAGMA journal_mode = WAL")  # the header an older corl left: WAL mode, no log file
+    expected = rows(store)
+    real_access = os.access
+    monkeypatch.setattr(sqlite_module.os, "access", lambda p, mode: not mode & os.W_OK and real_access(p, mode))
+    assert rows(store) == expected
+    assert sidecars(tmp_path) == []  # neither -shm nor -wal was created
+    (tmp_path / "run.corl-wal").write_bytes(b"\0" * 64)  # a log with data in a read-only place: say so
+    with pytest.raises(StoreError, match="read-only place with trials still in its write-ahead log"):
+        RunStore(store, readonly=True)
