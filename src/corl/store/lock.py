@@ -17,6 +17,7 @@ On Windows (no ``fcntl``) the lock falls back to ``msvcrt.locking`` on a sibling
 
 from __future__ import annotations
 
+import errno
 import os
 import socket
 from pathlib import Path
@@ -107,9 +108,12 @@ class WriterLock:
             st = os.fstat(fd)
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:
+            except OSError as exc:
                 holder = _flock_holder(st)
                 os.close(fd)  # this process writes nothing to the file (checked above)
+                if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                    raise StoreError(f"cannot lock store {self.store_path} for writing: {exc.strerror}; keep "
+                                     "stores on a local disk") from None
                 raise self._busy(holder) from None
             if not self._names_file(st):
                 os.close(fd)  # replaced or removed while we locked it: start over
