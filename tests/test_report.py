@@ -7,6 +7,7 @@ import os
 import re
 import shutil
 import subprocess
+import sys
 from html.parser import HTMLParser
 
 import numpy as np
@@ -69,8 +70,10 @@ def synthetic_run(tmp_path_factory):
         return store, len(run.history)
 
 
-def report(store, out, *args):
-    return runner.invoke(app, ["report", "--store", str(store), "--out", str(out), "--quiet", *args])
+def report(store, out, *args, task="synthetic"):
+    """`corl report --quiet`, naming the task like `corl run` did (``task=None``: no --task)."""
+    named = [] if task is None else ["--task", task]
+    return runner.invoke(app, ["report", "--store", str(store), "--out", str(out), "--quiet", *named, *args])
 
 
 def test_page_is_self_contained_with_every_trial_and_png_figures(synthetic_run, tmp_path):
@@ -206,15 +209,54 @@ def parse_dom_body(dom: str) -> dict:
     return page.body
 
 
-def test_task_that_cannot_be_loaded_still_gets_a_page(tmp_path):
+def test_a_task_that_cannot_be_loaded_is_refused_and_another_task_is_a_note(tmp_path, monkeypatch):
     store = tmp_path / "custom.corl"
     task = load_task("synthetic", seed=2)
     with RunStore(store) as db:
-        run = StoredRun.start(db, task, task_spec="no_such_module_here:make_task", method="CORL+PIBU", seed=2)
+        run = StoredRun.start(db, task, task_spec="synthetic", method="CORL+PIBU", seed=2)
         run.run(task, max_trials=12)
-    res = report(store, tmp_path / "rep")
+    res = report(store, tmp_path / "rep", task="no_such_module_here:make_task")
+    assert res.exit_code == 2 and "cannot import task module 'no_such_module_here'" in res.stderr, res.output
+    assert not (tmp_path / "rep").exists()  # refused: no folder left behind
+    (tmp_path / "other.py").write_text("from corl.tasks.synthetic import SyntheticTask\n"
+                                       "class Other(SyntheticTask):\n    name = 'other'\n"
+                                       "def make():\n    return Other((0.6, 0.4))\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    res = report(store, tmp_path / "rep", task="other:make")
+    sys.modules.pop("other", None)
     assert res.exit_code == 0, res.output
     text = (tmp_path / "rep" / "run_1.html").read_text()
     page = parse(tmp_path / "rep" / "run_1.html")
     assert page.trial_rows == 12 and len(page.images) == 1  # the trials still show, with their returns
-    assert "Not shown" in text and "no_such_module_here:make_task" in text and "could not be loaded" in text
+    assert "Not shown" in text and "is not this run&#x27;s task &#x27;synthetic&#x27;" in text
+
+
+PWN = """
+import pathlib
+pathlib.Path("PWNED").write_text("code named in the store ran")
+def make():
+    raise SystemExit("pwned")
+"""
+
+
+def test_report_never_imports_a_task_named_in_the_store(tmp_path, monkeypatch):
+    """A store whose task_spec names `pwn:make`, with pwn.py in the working directory: nothing of it runs."""
+    store = tmp_path / "run.corl"
+    task = load_task("synthetic", seed=2)
+    with RunStore(store) as db:
+        StoredRun.start(db, task, task_spec="pwn:make", method="CORL+PIBU", seed=2).run(task, max_trials=12)
+    (tmp_path / "pwn.py").write_text(PWN)
+    monkeypatch.chdir(tmp_path)
+    res = runner.invoke(app, ["report", "--store", str(store), "--out", str(tmp_path / "rep")])
+    assert res.exit_code == 0, res.output
+    assert not (tmp_path / "PWNED").exists()
+    assert "no --task given" in res.stderr and "without J" in res.stderr  # says what the pages leave out
+    text = (tmp_path / "rep" / "run_1.html").read_text()
+    assert parse(tmp_path / "rep" / "run_1.html").trial_rows == 12
+    assert "No task was named" in text and "pwn:make" in text  # shown as stored text, never imported
+    # with the task named on the command line, the page is complete
+    res = report(store, tmp_path / "full")
+    assert res.exit_code == 0, res.output
+    assert not (tmp_path / "PWNED").exists()
+    assert len(parse(tmp_path / "full" / "run_1.html").images) > len(parse(tmp_path / "rep" / "run_1.html").images)
+    assert "No task was named" not in (tmp_path / "full" / "run_1.html").read_text()

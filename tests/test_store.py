@@ -19,6 +19,7 @@ import pytest
 from corl.errors import InputError, StateError
 from corl.problem import Outcome, Proposal
 from corl.store import FORMAT_VERSION, RunStatus, RunStore, StoreError, replay
+from corl.store.machine import machine_info
 from corl.versions import library_versions, version_differences
 
 
@@ -126,7 +127,8 @@ def test_versions_default_to_the_installed_libraries_and_differences_are_listed(
     assert {"python", "corl", "numpy", "scipy", "cma", "joblib", "platform"} <= set(versions)
     assert versions["numpy"] == np.__version__
     with RunStore(store_path) as store:
-        assert store.run(store.create_run(task="door", method="cma", seed=None, config={})).versions == versions
+        stored = store.run(store.create_run(task="door", method="cma", seed=None, config={})).versions
+    assert stored == {**versions, **machine_info()} and "cpu" in stored
     changed = version_differences({"numpy": "2.3.5", "scipy": "1.16.3"}, {"numpy": "2.4.0", "scipy": "1.16.3"})
     assert changed == ["numpy 2.3.5 -> 2.4.0"]
 
@@ -389,16 +391,17 @@ def test_replay_reports_where_the_run_stops_matching(store_path):
     with RunStore(store_path) as store:
         run = new_run(store)
         run_trials(FakeLearner(8, gain=1.0), store, run, 3)
-        with pytest.raises(StoreError, match="does not match this learner's configuration at trial 0: w differs"):
+        with pytest.raises(StoreError, match="does not propose the stored trial 0: w differs by .* the likely cause "
+                                             "is the code or the configuration"):
             replay(FakeLearner(9), store, run)
         # same seed, but w depends on the told return differently: the first trial still matches
-        with pytest.raises(StoreError, match="at trial 1: w differs"):
+        with pytest.raises(StoreError, match="trial 1: w differs"):
             replay(FakeLearner(8, gain=2.0), store, run)
-        with pytest.raises(StoreError, match="at trial 0: w has shape \\(4,\\), the store holds \\(6,\\)"):
+        with pytest.raises(StoreError, match="trial 0: w has shape \\(4,\\), the store holds \\(6,\\)"):
             replay(FakeLearner(8, n=4), store, run)
         older = new_run(store, versions={"numpy": "1.26.4"})
         run_trials(FakeLearner(8), store, older, 1)
-        with pytest.raises(StoreError, match=f"software also differs .*numpy 1.26.4 -> {np.__version__}"):
+        with pytest.raises(StoreError, match=f"Likely cause: this machine's software .*numpy 1.26.4 -> {np.__version__}"):
             replay(FakeLearner(9), store, older)
 
 

@@ -7,11 +7,15 @@ so that ``corl --help`` stays fast.
 from __future__ import annotations
 
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Optional
 
 import typer
+
+from corl.arguments import NEW_PATHS, check, latest_run  # light: no numpy
+from corl.errors import CorlError
 
 app = typer.Typer(add_completion=False, no_args_is_help=True,
                   help="corl: learn a manipulation skill from one demonstration (Englert & Toussaint, RSS 2016).")
@@ -20,8 +24,18 @@ app.add_typer(bench_app, name="bench")
 
 
 def _fail(message: str, code: int = 2) -> None:
+    """Print ``error: message`` and exit; what the command created is removed while still empty."""
     typer.echo(f"error: {message}", err=True)
+    NEW_PATHS.remove_if_empty()
     raise typer.Exit(code)
+
+
+def _check(**args) -> None:
+    """:func:`corl.arguments.check` of the arguments, before any rollout or file; the first bad one exits 2."""
+    try:
+        check(**args)
+    except CorlError as exc:
+        _fail(str(exc))
 
 
 def _method_list(methods: Optional[str], *, default: list[str], allowed) -> list[str]:
@@ -87,6 +101,8 @@ def bench_synthetic(
     names = _method_list(methods, default=list(PAPER_FIG1), allowed=METHODS)
     if starts < 1:
         _fail("--starts must be at least 1")
+    _check(seed=("--seed", seed), jobs=("--jobs", jobs), folder=("--out", out))
+    NEW_PATHS.track(out)
     t0 = time.perf_counter()
     with _tracker("bench synthetic", quiet=quiet, log=log, json_out=json_out) as tracker:
         for name in names:
@@ -139,12 +155,16 @@ def bench_door(
     names = _method_list(methods, default=list(DOOR_METHODS), allowed=DOOR_METHODS)
     if min(seeds, iterations, dmp_iterations) < 1:
         _fail("--seeds, --iterations and --dmp-iterations must be at least 1")
-    if not force_noise >= 0.0:
-        _fail(f"--force-noise is a standard deviation in N and must be >= 0, got {force_noise}")
+    if not 0.0 <= force_noise < float("inf"):
+        _fail(f"--force-noise is a standard deviation in N and must be finite and >= 0, got {force_noise}")
     try:
         n1, n2 = (int(v) for v in grid.lower().split("x"))
     except ValueError:
         _fail(f"--grid must look like 25x15, got {grid!r}")
+    if min(n1, n2) < 2:
+        _fail(f"--grid needs at least 2 points per axis, got {grid!r}")
+    _check(jobs=("--jobs", jobs), folder=("--out", out))
+    NEW_PATHS.track(out)
     t0 = time.perf_counter()
     with _tracker("bench door", quiet=quiet, log=log, json_out=json_out) as tracker:
         for name in names:
@@ -208,8 +228,15 @@ def run(
     from corl.tasks.registry import load_task
 
     store_path = store or out / "run.corl"
+    _check(task=("TASK", task), seed=("--seed", seed), folder=("--out", out), store=("--store", store_path))
+    if method is not None and method not in METHODS:
+        _fail(f"unknown method '{method}'; choose from {', '.join(METHODS)}")
+    NEW_PATHS.track(out, store_path)
     t0 = time.perf_counter()
     try:
+        peeked = latest_run(store_path) if resume else None  # read-only: the seed to build the task with
+        task_seed = (0 if seed is None else seed) if peeked is None else int(peeked.seed or 0)
+        the_task = load_task(task, seed=task_seed)  # before any file is created
         db = _open_store(store_path)
     except CorlError as exc:
         _fail(str(exc))
@@ -223,15 +250,15 @@ def run(
                 for flag, given, stored in (("--method", method, info.method), ("--seed", seed, info.seed)):
                     if given is not None and given != stored:
                         _fail(f"{flag} {given} differs from the run being resumed ({stored}); drop the flag")
-                method, seed = info.method, int(info.seed)
-                the_task = load_task(task, seed=seed)
+                method, seed = info.method, int(info.seed or 0)
+                if seed != task_seed:  # another process started a run meanwhile
+                    the_task = load_task(task, seed=seed)
                 session = StoredRun.open(db, the_task, info.id)
             else:
                 method = method or "CORL+PIBU"
                 seed = 0 if seed is None else seed
-                if method not in METHODS:
-                    _fail(f"unknown method '{method}'; choose from {', '.join(METHODS)}")
-                the_task = load_task(task, seed=seed)
+                if seed != task_seed:
+                    the_task = load_task(task, seed=seed)
                 session = StoredRun.start(db, the_task, task_spec=task, method=method, seed=seed)
         except CorlError as exc:
             _fail(str(exc))
@@ -287,13 +314,23 @@ def ask(
     import numpy as np
 
     from corl.errors import CorlError
+    from corl.experiments.methods import METHODS
     from corl.session import StoredRun, trajectory_of
     from corl.tasks.registry import load_task
 
+    _check(task=("--task", task), seed=("--seed", seed), rate=("--rate", rate), store=("--store", store),
+           folder=("--out", out))
+    if method not in METHODS:
+        _fail(f"unknown method '{method}'; choose from {', '.join(METHODS)}")
+    NEW_PATHS.track(store, *([out] if out is not None else []))
     try:
+        peeked = latest_run(store)  # read-only: the seed to build the task with
+        task_seed = seed if peeked is None else int(peeked.seed or 0)
+        the_task = load_task(task, seed=task_seed)  # before any file is created
         with _open_store(store) as db:
             info = db.latest_run()
-            the_task = load_task(task, seed=seed if info is None else int(info.seed))
+            if info is not None and int(info.seed or 0) != task_seed:  # another process started a run meanwhile
+                the_task = load_task(task, seed=int(info.seed or 0))
             if info is None:
                 session = StoredRun.start(db, the_task, task_spec=task, method=method, seed=seed)
             else:
@@ -334,6 +371,10 @@ def tell(
     flag = success.strip().lower()
     if flag not in ("yes", "no"):
         _fail(f"--success must be yes or no, got {success!r}")
+    _check(task=("--task", task), store=("--store", store))
+    if flag == "no" and return_ is not None:
+        _fail(f"a failed trial is told without a return: drop --return {return_} (or say --success yes if the "
+              "trial succeeded); nothing was stored")
     value = None
     if return_ is not None:
         try:
@@ -350,7 +391,7 @@ def tell(
                 _fail(f"{store} holds no run; start one with 'corl ask'")
             if db.pending(info.id) is None:
                 _fail("there is no pending trial to tell (each trial is told once): run 'corl ask' first")
-            session = StoredRun.open(db, load_task(task, seed=int(info.seed)), info.id)
+            session = StoredRun.open(db, load_task(task, seed=int(info.seed or 0)), info.id)
             session.tell(outcome)
             typer.echo(json.dumps({"trial": len(session.history) - 1, "success": outcome.success,
                                    "return": outcome.return_, "done": session.done}))
@@ -371,6 +412,7 @@ def status(store: Path = typer.Option(..., help="run store"),
     """Show a run: its configuration, trials so far, failures and the best trial."""
     from corl.errors import CorlError
 
+    _check(path=("--store", store))
     try:
         with _open_store(store, readonly=True) as db:
             info = db.run(run_id) if run_id is not None else db.latest_run()
@@ -400,6 +442,7 @@ def runs(store: Path = typer.Option(..., help="run store"), json_out: bool = JSO
     """List a store's runs."""
     from corl.errors import CorlError
 
+    _check(path=("--store", store))
     try:
         with _open_store(store, readonly=True) as db:
             infos = db.runs()
@@ -419,6 +462,7 @@ def export(store: Path = typer.Option(..., help="run store"),
     """Export a run's trials for analysis."""
     from corl.errors import CorlError
 
+    _check(path=("--store", store), export=("--out", out))
     try:
         with _open_store(store, readonly=True) as db:
             info = db.run(run_id) if run_id is not None else db.latest_run()
@@ -435,14 +479,18 @@ def report(store: Path = typer.Option(..., help="run store"),
            out: Path = typer.Option(..., help="folder for the pages run_<id>.html (and index.html)"),
            run_id: Optional[int] = typer.Option(None, "--run", help="run id (default: every run)"),
            video: bool = typer.Option(True, "--video/--no-video", help="embed the video for tasks that render"),
+           task: Optional[str] = typer.Option(None, help="the runs' task, as given to 'corl run' (never read "
+                                                        "from the store); without it the pages show stored data only"),
            quiet: bool = QUIET, json_out: bool = JSON_OUT) -> None:
     """One self-contained HTML page per run: configuration, versions, curves, return map, trials, video."""
     from corl.errors import CorlError
     from corl.experiments.html_report import write_reports
 
+    _check(path=("--store", store), task=("--task", task), folder=("--out", out))
+    NEW_PATHS.track(out)
     with _tracker("report", quiet=quiet, log=True, json_out=json_out) as tracker:  # messages only
         try:
-            pages = write_reports(store, out, run_id=run_id, video=video, log=tracker.message)
+            pages = write_reports(store, out, run_id=run_id, video=video, log=tracker.message, task_spec=task)
         except CorlError as exc:
             _fail(str(exc))
     if json_out:
@@ -452,7 +500,15 @@ def report(store: Path = typer.Option(..., help="run store"),
 
 
 def main() -> None:
-    app()
+    """The ``corl`` entry point: a bug that escapes a command prints one line, not a traceback."""
+    try:
+        app()
+    except Exception as exc:  # not a usage error: every one of those exits 2 with its own message
+        if os.environ.get("CORL_DEBUG"):
+            raise
+        typer.echo(f"error: internal error {type(exc).__name__}: {exc}. This is a bug in corl or in the task; "
+                   "set CORL_DEBUG=1 to see the traceback, and please report it", err=True)
+        sys.exit(1)
 
 
 if __name__ == "__main__":

@@ -15,18 +15,19 @@ an import path) and checked against the name recorded with the run.
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from corl.errors import InputError, StateError
+from corl.errors import DemonstrationFailedError, InputError, StateError
 from corl.loop import drive
 from corl.problem import Outcome, Proposal, Task
 from corl.store import RunStatus, RunStore, StoreError, replay
 
-__all__ = ["StoredRun", "trajectory_of"]
+__all__ = ["StoredRun", "trajectory_of", "check_rate", "MAX_RATE_HZ"]
 
 
 def _build(task: Task, method: str, seed: int):
@@ -64,7 +65,7 @@ class StoredRun:
         if info.task != task.name:
             raise InputError(f"run {info.id} in {store.path} is for task '{info.task}', but the task given is "
                              f"'{task.name}'; name the same task as when the run was started")
-        learner = _build(task, info.method, int(info.seed))
+        learner = _build(task, info.method, 0 if info.seed is None else int(info.seed))
         replay(learner, store, info.id)
         return cls(learner, store, info.id)
 
@@ -75,11 +76,17 @@ class StoredRun:
         return proposal
 
     def tell(self, outcome: Outcome) -> None:
+        """Commit the outcome of the pending trial, then tell the learner.
+
+        An outcome the learner would refuse is refused before anything is written: a failed
+        demonstration (Algorithm 1 needs a successful one) leaves the store as it was.
+        """
+        if not isinstance(outcome, Outcome):
+            raise InputError(f"tell() needs a corl.Outcome, got {type(outcome).__name__}")
         pending = self.store.pending(self.run_id)
         if pending is None:
             raise StateError("there is no pending trial to tell: run 'corl ask' first")
-        if not isinstance(outcome, Outcome):
-            raise InputError(f"tell() needs a corl.Outcome, got {type(outcome).__name__}")
+        _check_outcome(self.learner, pending.proposal, outcome)
         self.store.add_outcome(self.run_id, pending.index, outcome)  # committed before the learner moves on
         try:
             self.learner.tell(outcome)
@@ -108,14 +115,38 @@ class StoredRun:
         return self.best
 
 
+def _check_outcome(learner, proposal: Proposal, outcome: Outcome) -> None:
+    """Raise what ``learner.tell(outcome)`` would raise for a refused outcome, before it is stored."""
+    from corl.learner import CORL
+
+    if isinstance(learner, CORL) and proposal.step == "demonstration" and not outcome.success:
+        raise DemonstrationFailedError(
+            "the demonstration failed, so Algorithm 1 has no safe start; nothing was stored. Re-record the "
+            "demonstration (or check the success criterion) and tell its outcome again, or start a new run"
+        )
+
+
+MAX_RATE_HZ = 100_000.0  # a robot's control rate is at most a few kHz; beyond this a CSV only grows
+
+
+def check_rate(rate: float) -> float:
+    """``rate`` (Hz) of a written trajectory, or :class:`InputError`: finite, > 0 and <= MAX_RATE_HZ."""
+    try:
+        value = float(rate)
+    except (TypeError, ValueError):
+        raise InputError(f"the rate must be a number of Hz, got {rate!r}") from None
+    if not (math.isfinite(value) and 0.0 < value <= MAX_RATE_HZ):
+        raise InputError(f"the rate must be a finite number of Hz in (0, {MAX_RATE_HZ:g}], got {rate}")
+    return value
+
+
 def trajectory_of(task: Task, w: np.ndarray, rate: float) -> tuple[np.ndarray, np.ndarray]:
     """Times (K,) and joint positions (K, Q) a robot should follow for ``w``.
 
     Tasks with a reference trajectory provide ``task.reference(w, rate)``; for others the
     parameters themselves are the "trajectory" (one row at time 0).
     """
-    if rate <= 0:
-        raise InputError(f"rate must be positive (Hz), got {rate}")
+    check_rate(rate)
     reference = getattr(task, "reference", None)
     if reference is None:
         return np.zeros(1), np.asarray(w, dtype=float)[None, :]

@@ -7,9 +7,10 @@ GP classifier's boundary (Fig. 2c), the table of trials and, for tasks that rend
 demonstration beside the learned motion.
 
 The learner is rebuilt by replaying the stored trials (:meth:`corl.session.StoredRun.open`) into a
-fresh learner on the task named by the run's stored ``task_spec``. When that is impossible (the
-task's module is not importable here, the software changed so the replay diverges), the page is
-still written from the stored trials alone, and says what is missing and why.
+fresh learner on the task named on the command line (``corl report --task SPEC``); nothing named
+in the store is ever imported. Without ``--task``, or when the replay is impossible (a run of
+another task, software that changed so the replay diverges), the page is still written from the
+stored trials alone, and says what is missing and why.
 
 Glossary
 --------
@@ -71,17 +72,20 @@ def data_uri(path: str | Path) -> str:
 
 
 # -- rebuilding the run ------------------------------------------------------------------------
-def _load_and_replay(db: RunStore, info: RunInfo, notes: list[str], log: Callable[[str], None]):
-    """(task, learner) of the run, either None with a note saying why."""
+def _load_and_replay(db: RunStore, info: RunInfo, notes: list[str], log: Callable[[str], None],
+                     task_spec: str | None):
+    """(task, learner) of the run, either None with a note saying why; the task comes from ``task_spec``."""
     from corl.session import StoredRun
     from corl.tasks.registry import load_task
 
-    spec = info.config.get("task_spec") or info.task
-    try:
-        task = load_task(spec, seed=int(info.seed or 0))
-    except (CorlError, ImportError) as exc:
-        notes.append(f"The task '{spec}' could not be loaded here ({exc}), so J, the return map and a "
-                     "rendered video are missing; run 'corl report' where the task's module is importable.")
+    if task_spec is None:
+        notes.append("No task was named (corl report --task SPEC), so J, the motion-optimization curve, the "
+                      "return map and a rendered video are missing; the trials below come from the store alone.")
+        return None, None
+    task = load_task(task_spec, seed=int(info.seed or 0))  # a task named but not loadable: InputError
+    if task.name != info.task:
+        notes.append(f"The task given ('{task_spec}', named '{task.name}') is not this run's task '{info.task}', "
+                     "so J, the return map and a rendered video are missing.")
         return None, None
     if info.n_trials:
         log(f"run {info.id}: replaying {info.n_trials} trials of {info.method} on {info.task}")
@@ -252,11 +256,14 @@ def _video(report: RunReport, task, learner, folder: Path, n_runs: int) -> None:
 
 
 def collect_report(db: RunStore, info: RunInfo, *, video: bool = True, n_runs: int = 1,
-                   log: Callable[[str], None] = lambda message: None) -> RunReport:
-    """Everything the page of run ``info`` shows: trials, J, figures, video and notes."""
+                   log: Callable[[str], None] = lambda message: None, task_spec: str | None = None) -> RunReport:
+    """Everything the page of run ``info`` shows: trials, J, figures, video and notes.
+
+    ``task_spec`` names the task (as on the command line); without it the page shows the stored data only.
+    """
     records = db.trials(info.id)
     notes: list[str] = []
-    task, learner = _load_and_replay(db, info, notes, log)
+    task, learner = _load_and_replay(db, info, notes, log, task_spec)
     labels = tuple(getattr(task, "theta_labels", ()) or ())
     dim = records[0].proposal.theta.shape[0] if records else 0
     if len(labels) != dim:
@@ -273,11 +280,14 @@ def collect_report(db: RunStore, info: RunInfo, *, video: bool = True, n_runs: i
 
 
 def write_reports(store: str | Path, out: str | Path, *, run_id: int | None = None, video: bool = True,
-                  log: Callable[[str], None] = lambda message: None) -> list[Path]:
+                  log: Callable[[str], None] = lambda message: None, task_spec: str | None = None) -> list[Path]:
     """Write ``OUT/run_<id>.html`` for every run of the store (or only ``run_id``).
 
+    ``task_spec`` (``corl report --task``) names the task whose learner is rebuilt by replay; without
+    it the pages show the stored data alone, and ``log`` says what they leave out.
     With more than one page, ``OUT/index.html`` lists them. Returns the paths written, index last.
-    Raises :class:`StoreError` for a missing or damaged store, an unknown run or an empty store.
+    Raises :class:`StoreError` for a missing or damaged store, an unknown run or an empty store, and
+    :class:`InputError` for a ``task_spec`` that cannot be loaded.
     """
     from corl.experiments.html_page import render_index, render_page
 
@@ -290,13 +300,16 @@ def write_reports(store: str | Path, out: str | Path, *, run_id: int | None = No
         if not infos:
             raise StoreError(f"{store} holds no run yet, so there is nothing to report; "
                              "start one with 'corl run' or 'corl ask'")
+        if task_spec is None:
+            log("no --task given: the pages show the stored trials only, without J, the motion-optimization "
+                "curve, the return map or a rendered video; add --task SPEC (as given to 'corl run') for them")
         try:
             out.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise InputError(f"cannot create the report folder {out}: {exc.strerror}; choose another --out") from None
         written = []
         for info in infos:
-            report = collect_report(db, info, video=video, n_runs=len(every_run), log=log)
+            report = collect_report(db, info, video=video, n_runs=len(every_run), log=log, task_spec=task_spec)
             written.append(_write_text(out / f"run_{info.id}.html", render_page(report)))
             log(f"run {info.id}: wrote {written[-1]}")
     if len(written) > 1:

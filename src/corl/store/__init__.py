@@ -5,14 +5,23 @@ On a real robot a trial costs minutes, so the store never loses, repeats or corr
 - every write (one proposal, one outcome, one run) is one transaction, ``BEGIN IMMEDIATE ...
   COMMIT``, in WAL mode with ``synchronous=FULL``: a process killed at any moment leaves the old
   or the new state, never half a trial, and a call that returned has reached the disk;
-- one writer at a time: a writing :class:`RunStore` holds an exclusive lock on the sibling file
-  ``<store>.lock`` for its whole life. The kernel releases the lock when the process exits or is
+- one writer at a time: a writing :class:`RunStore` holds an exclusive ``flock`` on the store file
+  itself for its whole life (:mod:`corl.store.lock`), so every name of the file (hard links,
+  symlinks) meets the same lock, and a file with several hard links is not written at all (SQLite
+  keeps one write-ahead log per name). The kernel releases the lock when the process exits or is
   killed, so a crashed run never blocks its own resume. Readers (``readonly=True``) open at any
   time and see the last committed state;
+- one file at rest: closing a writer checkpoints its write-ahead log into the file and returns to a
+  rollback journal, and a reader first folds in the log a killed writer left behind (when no one
+  writes the store now), so after any command ``run.corl`` alone holds every trial and can be
+  copied alone. In a read-only place (a read-only folder, mount or file) a store is read with
+  SQLite's ``immutable`` open, which needs no ``-shm`` file;
 - arrays are stored as raw little-endian float64 bytes beside their shape (never pickled), so they
   come back bit for bit;
 - :func:`replay` resumes a run exactly: a fresh deterministic learner is asked again for every
-  stored trial, must propose the very same trial, and is told every stored outcome.
+  stored trial, must propose the same trial (bit for bit, or within :data:`RESUME_RTOL` when
+  another CPU's arithmetic differs in the last bits), continues from the stored proposal (what the
+  robot executed) and is told every stored outcome.
 
 A run's trials form a prefix: indices 0, 1, ..., d-1 without gaps, every outcome belongs to a
 stored proposal, and only the last trial may be pending (asked, not yet told).
@@ -27,7 +36,7 @@ outcomes(run_id, trial_index, success, return_, info, told_at)     return_ NULL 
 """
 
 from corl.store.records import RunInfo, RunStatus, StoreError, TrialRecord
-from corl.store.resume import AskTellLearner, replay
+from corl.store.resume import RESUME_RTOL, AskTellLearner, replay
 from corl.store.sqlite import APPLICATION_ID, FORMAT_VERSION, RunStore
 
-__all__ = ["FORMAT_VERSION", "RunInfo", "RunStatus", "RunStore", "StoreError", "TrialRecord", "replay"]
+__all__ = ["FORMAT_VERSION", "RESUME_RTOL", "RunInfo", "RunStatus", "RunStore", "StoreError", "TrialRecord", "replay"]

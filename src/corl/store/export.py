@@ -7,7 +7,55 @@ import os
 import tempfile
 from pathlib import Path
 
-from corl.store.records import TrialRecord
+import numpy as np
+
+from corl.errors import InputError
+from corl.store.records import StoreError, TrialRecord
+
+__all__ = ["check_export_path", "write_export"]
+
+
+def check_export_path(path) -> Path:
+    """The export file ``path`` as a Path, or :class:`InputError` saying why it cannot be written."""
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(f"{path} is a folder; give --out a file name such as {path / 'trials.csv'}")
+    if path.suffix not in (".csv", ".parquet"):
+        raise InputError(f"export writes a .csv or .parquet file, got {path.name!r}; give --out a file name "
+                         "ending in .csv or .parquet")
+    if not path.parent.is_dir():
+        raise InputError(f"the folder {path.parent} to export into does not exist; create it first")
+    for target in (path, path.with_suffix(".w.npz")):
+        if target.exists() and not target.is_file():
+            raise InputError(f"{target} exists and is not a file; choose another --out")
+    if not os.access(path.parent, os.W_OK):
+        raise InputError(f"the folder {path.parent} is not writable; choose another --out")
+    if path.suffix == ".parquet":
+        try:
+            import pyarrow  # noqa: F401
+        except ImportError:
+            raise StoreError("exporting to Parquet needs pyarrow: `pip install pyarrow`, or export to .csv") from None
+    return path
+
+
+def write_export(records: list[TrialRecord], run_id: int, path: Path) -> tuple[Path, Path]:
+    """Write the table to ``path`` and the w vectors to ``<name>.w.npz`` (see ``RunStore.export``)."""
+    w_shapes = {r.proposal.w.shape for r in records}
+    if len(w_shapes) > 1:
+        raise StoreError(f"run {run_id} holds w of several shapes {sorted(w_shapes)}, which cannot be stacked")
+    columns = _table_columns(records)
+    if path.suffix == ".csv":
+        _write_atomically(path, lambda f: _write_csv(f, columns), text=True)
+    else:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        _write_atomically(path, lambda f: pq.write_table(pa.table(columns), f))
+    npz = path.with_suffix(".w.npz")
+    index = np.array([r.index for r in records], dtype=np.int64)
+    w = np.stack([r.proposal.w for r in records]) if records else np.empty((0, 0))
+    _write_atomically(npz, lambda f: np.savez(f, index=index, w=w))
+    return path, npz
 
 
 def _table_columns(records: list[TrialRecord]) -> dict[str, list]:
@@ -39,12 +87,18 @@ def _write_csv(file, columns: dict[str, list]) -> None:
 
 def _write_atomically(path: Path, write, *, text: bool = False) -> None:
     """Write through a temporary file in the same folder, then rename: no half-written exports."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    except OSError as exc:
+        raise InputError(f"cannot write {path}: {exc.strerror}; choose another --out") from None
     try:
         with open(fd, "w" if text else "wb", newline="" if text else None) as f:
             write(f)
         os.chmod(tmp, 0o644)
         os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise InputError(f"cannot write {path}: {exc.strerror}; choose another --out") from None
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise

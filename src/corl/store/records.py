@@ -88,8 +88,24 @@ def _encode_array(value: Any, *, what: str) -> tuple[bytes, str]:
     return arr.tobytes(), json.dumps(list(arr.shape))
 
 
+def _load_json(text: Any, *, what: str, kind: type | None = None) -> Any:
+    """The value of a stored JSON field; a field that does not parse (or is not a ``kind``) is damage."""
+    try:
+        value = json.loads(text)
+    except (TypeError, ValueError, RecursionError):
+        raise StoreError(f"{what} is not valid JSON ({str(text)[:40]!r}); the store is damaged") from None
+    if kind is not None and not isinstance(value, kind):
+        raise StoreError(f"{what} holds a {type(value).__name__}, not a {kind.__name__}; the store is damaged")
+    return value
+
+
 def _decode_array(blob: bytes, shape_json: str, *, what: str) -> np.ndarray:
-    shape = tuple(json.loads(shape_json))
+    shape = _load_json(shape_json, what=f"the shape of {what}", kind=list)
+    if not all(isinstance(k, int) and not isinstance(k, bool) and 0 <= k < 2**31 for k in shape):
+        raise StoreError(f"the shape of {what} is {shape}, not a list of sizes; the store is damaged")
+    shape = tuple(shape)
+    if not isinstance(blob, bytes):
+        raise StoreError(f"{what} is stored as {type(blob).__name__}, not as bytes; the store is damaged")
     if len(blob) != _ARRAY_DTYPE.itemsize * int(np.prod(shape, dtype=np.int64)):
         raise StoreError(f"{what} has {len(blob)} bytes, which does not fit its shape {shape}; the store is damaged")
     return np.frombuffer(blob, dtype=_ARRAY_DTYPE).astype(np.float64).reshape(shape)

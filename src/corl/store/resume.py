@@ -1,4 +1,27 @@
-"""Exact resume: :func:`replay` brings a fresh learner to where a stored run stopped."""
+"""Exact resume: :func:`replay` brings a fresh learner to where a stored run stopped.
+
+The stored proposals are what the robot executed, so they are the truth a resumed learner must
+continue from. A learner rebuilt on another machine recomputes every proposal; another CPU (or
+another OpenBLAS kernel on the same CPU) may round the last bits differently. A recomputed vector
+``v`` that agrees with the stored ``s`` within
+
+    max_j |v_j - s_j| <= RESUME_RTOL * max(1, max_j |s_j|)
+
+is that same proposal: the stored values are copied into the learner's arrays in place, so the
+learner continues from exactly what was executed and the replay stays exact. A larger difference
+is a real divergence: the resume stops with a message that names the likely causes (library
+versions, the BLAS kernel or processor, the code or configuration).
+
+Glossary
+--------
+v, s        : a recomputed and the stored vector (``w`` (n,) or ``theta`` (m,))
+RESUME_RTOL : tolerance relative to ``max(1, ||s||_inf)``. One rounding is ~1e-16, but the
+              trajectory solvers stop at a tolerance (``SolverConfig.tol_constraint`` 1e-6,
+              ``inner_rtol`` 1e-2), so another rounding can stop them a little elsewhere: measured
+              on examples/planar_button.py (n = 90), the OpenBLAS Haswell kernel against SkylakeX
+              moves every recomputed w by up to 2.4e-8 relative. Anything beyond the tolerance
+              is taken for a real divergence (other code, configuration, seed or task).
+"""
 
 from __future__ import annotations
 
@@ -8,41 +31,68 @@ import numpy as np
 
 from corl.errors import CorlError
 from corl.problem import Outcome, Proposal
+from corl.store.machine import machine_info
 from corl.store.records import _ARRAY_DTYPE, StoreError
 from corl.store.sqlite import RunStore
 from corl.versions import library_versions, version_differences
 
+__all__ = ["RESUME_RTOL", "AskTellLearner", "replay"]
+
+RESUME_RTOL = 1e-6
+
 
 class AskTellLearner(Protocol):
-    """What :func:`replay` needs: the CORL learner's ``ask() -> Proposal`` and ``tell(outcome)``."""
+    """What :func:`replay` needs: the CORL learner's ``ask() -> Proposal`` and ``tell(outcome)``.
+
+    The arrays of a proposal must be the learner's own (the ones it continues from): when a
+    recomputed proposal agrees with the stored one within :data:`RESUME_RTOL`, replay overwrites
+    them in place with the stored values. :class:`corl.CORL` and the methods over ``w`` do so.
+    """
 
     def ask(self) -> Proposal: ...
 
     def tell(self, outcome: Outcome) -> None: ...
 
 
-def _bits_differ(asked: Any, stored: np.ndarray, what: str) -> str | None:
-    """Why ``asked`` is not bit for bit ``stored``, or None when it is."""
-    asked = np.asarray(asked, dtype=np.float64)
-    if asked.shape != stored.shape:
-        return f"{what} has shape {asked.shape}, the store holds {stored.shape}"
-    if asked.astype(_ARRAY_DTYPE).tobytes() == stored.astype(_ARRAY_DTYPE).tobytes():
-        return None
-    gap = np.abs(asked - stored)
+def _compare(asked: Any, stored: np.ndarray, what: str) -> tuple[str | None, bool]:
+    """(why ``asked`` is not the stored vector, or None; whether it differs in its bits at all)."""
+    arr = np.asarray(asked, dtype=np.float64)
+    if arr.shape != stored.shape:
+        return f"{what} has shape {arr.shape}, the store holds {stored.shape}", True
+    if arr.astype(_ARRAY_DTYPE).tobytes() == stored.astype(_ARRAY_DTYPE).tobytes():
+        return None, False
+    gap = np.abs(arr - stored)
+    scale = max(1.0, float(np.max(np.abs(stored), initial=0.0)))
+    if np.all(np.isfinite(gap)) and float(np.max(gap)) <= RESUME_RTOL * scale:
+        return None, True
     j = int(np.nanargmax(gap)) if np.any(np.isfinite(gap)) else 0
-    return f"{what} differs (largest difference {gap.flat[j]:.3g} at entry {j})"
+    return (f"{what} differs by {gap.flat[j]:.3g} at entry {j} (more than the {RESUME_RTOL:g} x {scale:.3g} "
+            "that another CPU's rounding explains)"), True
+
+
+def _adopt(asked: Proposal, stored: Proposal) -> str | None:
+    """Copy the stored w and theta into the learner's arrays; why that is impossible, or None."""
+    for mine, theirs, what in ((asked.w, stored.w, "w"), (asked.theta, stored.theta, "theta")):
+        if not isinstance(mine, np.ndarray) or mine.dtype != np.float64 or not mine.flags.writeable:
+            return (f"{what} agrees within {RESUME_RTOL:g} but differs in its last bits, and the learner's "
+                    f"{what} is not a writable float64 array that could continue from the stored one")
+        np.copyto(mine, theirs)
+    return None
 
 
 def replay(learner: AskTellLearner, store: RunStore, run_id: int) -> int:
     """Bring a fresh learner to where a stored run stopped (exact resume).
 
-    For each stored trial in index order (Alg. 1 replayed): ``p = learner.ask()`` must equal the
-    stored proposal bit for bit (index, step, round, w, theta); a told trial is then told to the
-    learner again. A final pending trial stays pending: the learner has asked it, so its next
-    ``ask()`` returns it again and the loop executes it as if nothing had happened.
+    For each stored trial in index order (Alg. 1 replayed): ``p = learner.ask()`` must propose the
+    stored trial (same index, step and round; ``w`` and ``theta`` bit for bit or within
+    :data:`RESUME_RTOL`, in which case the learner continues from the stored values); a told
+    trial is then told to the learner again. A final pending trial stays pending: the learner has
+    asked it, so its next ``ask()`` returns it again and the loop executes it as if nothing had
+    happened.
 
     The learner must be deterministic given its seed and freshly constructed with the run's task,
-    method, seed and configuration. Returns the number of outcomes told.
+    method, seed and configuration. Returns the number of outcomes told. Raises
+    :class:`StoreError` naming the likely cause when the learner proposes something else.
     """
     records = store.trials(run_id)
     told = 0
@@ -58,9 +108,13 @@ def replay(learner: AskTellLearner, store: RunStore, run_id: int) -> int:
                 problem = (f"the learner proposed trial {asked.index} ({asked.step!r}, round {asked.round}), "
                            f"the store holds trial {stored.index} ({stored.step!r}, round {stored.round})")
             else:
-                problem = _bits_differ(asked.w, stored.w, "w") or _bits_differ(asked.theta, stored.theta, "theta")
+                problem_w, moved_w = _compare(asked.w, stored.w, "w")
+                problem_theta, moved_theta = _compare(asked.theta, stored.theta, "theta")
+                problem = problem_w or problem_theta
+                if problem is None and (moved_w or moved_theta):
+                    problem = _adopt(asked, stored)
         if problem is not None:
-            raise StoreError(_mismatch_message(store, run_id, i, problem))
+            raise StoreError(_divergence_message(store, run_id, i, problem))
         if record.outcome is None:
             if i != len(records) - 1:
                 raise StoreError(f"trial {i} of run {run_id} is pending but later trials exist; the store is damaged")
@@ -70,14 +124,16 @@ def replay(learner: AskTellLearner, store: RunStore, run_id: int) -> int:
     return told
 
 
-def _mismatch_message(store: RunStore, run_id: int, i: int, problem: str) -> str:
+def _divergence_message(store: RunStore, run_id: int, i: int, problem: str) -> str:
+    """Where the resumed learner leaves the stored run, and what most likely made it."""
     run = store.run(run_id)
-    message = (
-        f"the store's run does not match this learner's configuration at trial {i}: {problem}. "
-        f"Resume run {run_id} with a fresh learner built like the original: task {run.task!r}, "
-        f"method {run.method!r}, seed {run.seed} and the stored configuration (`corl runs` shows it)"
-    )
-    changed = version_differences(run.versions, library_versions())
+    message = f"cannot resume run {run_id}: the learner does not propose the stored trial {i}: {problem}. "
+    changed = version_differences(run.versions, {**library_versions(), **machine_info()})
     if changed:
-        message += "; the software also differs from the run's, which can change results: " + ", ".join(changed)
-    return message
+        message += ("Likely cause: this machine's software or processor differs from the run's ("
+                    + ", ".join(changed) + "); resume with the run's versions (`corl report` lists them)")
+    else:
+        message += ("The library versions and the BLAS kernel match the run's, so the likely cause is the code "
+                    f"or the configuration: resume with the corl version, task {run.task!r}, method {run.method!r} "
+                    f"and seed {run.seed} the run was started with")
+    return message + ", or start a new run"

@@ -1,127 +1,30 @@
-"""The SQLite run store and its writer lock (the file format is described in :mod:`corl.store`)."""
+"""The SQLite run store (the file format is described in :mod:`corl.store`, the writer lock in
+:mod:`corl.store.lock`)."""
 
 from __future__ import annotations
 
-import json
 import os
-import socket
 import sqlite3
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Iterator, Mapping
 
-import numpy as np
-
-from corl.errors import InputError
+from corl.errors import CorlError, InputError
 from corl.problem import Outcome, Proposal
-from corl.store.export import _table_columns, _write_atomically, _write_csv
+from corl.store.export import check_export_path, write_export
+from corl.store.lock import WriterLock
+from corl.store.machine import machine_info
 from corl.store.records import (
-    RunInfo, RunStatus, StoreError, TrialRecord, _as_int, _decode_array, _encode_array, _json, _now,
+    RunInfo, RunStatus, StoreError, TrialRecord, _as_int, _decode_array, _encode_array, _json, _load_json, _now,
 )
+from corl.store.schema import _SCHEMA, _holds
 from corl.versions import library_versions
-
-try:  # POSIX
-    import fcntl
-except ImportError:  # pragma: no cover - Windows
-    fcntl = None
-    import msvcrt
 
 FORMAT_VERSION = 1  # the newest file format this corl reads and the one it writes
 APPLICATION_ID = int.from_bytes(b"corl", "big")  # marks the SQLite file as a corl store
 _BUSY_TIMEOUT_S = 5.0
+_FOLD_TIMEOUT_S = 0.2  # how long close() waits for readers before leaving the log to the next command
 _RESTORE_HINT = "restore it from a copy or start a new store with a different --store path"
-
-_SCHEMA = (
-    "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL)",
-    """CREATE TABLE runs (
-        id INTEGER PRIMARY KEY AUTOINCREMENT,
-        created TEXT NOT NULL,
-        task TEXT NOT NULL,
-        method TEXT NOT NULL,
-        seed INTEGER,
-        config TEXT NOT NULL,
-        versions TEXT NOT NULL,
-        status TEXT NOT NULL CHECK (status IN ('running', 'finished')))""",
-    """CREATE TABLE trials (
-        run_id INTEGER NOT NULL REFERENCES runs (id),
-        trial_index INTEGER NOT NULL CHECK (trial_index >= 0),
-        step TEXT NOT NULL,
-        round INTEGER NOT NULL,
-        w BLOB NOT NULL,
-        w_shape TEXT NOT NULL,
-        theta BLOB NOT NULL,
-        theta_shape TEXT NOT NULL,
-        proposed_at TEXT NOT NULL,
-        UNIQUE (run_id, trial_index))""",
-    """CREATE TABLE outcomes (
-        run_id INTEGER NOT NULL,
-        trial_index INTEGER NOT NULL,
-        success INTEGER NOT NULL CHECK (success IN (0, 1)),
-        return_ REAL CHECK (success = 0 OR return_ IS NOT NULL),
-        info TEXT NOT NULL,
-        told_at TEXT NOT NULL,
-        UNIQUE (run_id, trial_index),
-        FOREIGN KEY (run_id, trial_index) REFERENCES trials (run_id, trial_index))""",
-)
-
-
-def _holds(db: sqlite3.Connection, table: str, run_id: int, index: int) -> bool:
-    """Whether ``table`` ("trials" or "outcomes") has a row for trial ``index`` of the run."""
-    sql = f"SELECT 1 FROM {table} WHERE run_id = ? AND trial_index = ?"
-    return db.execute(sql, (run_id, index)).fetchone() is not None
-
-
-class _WriterLock:
-    """An exclusive, non-blocking lock on ``<store>.lock``, held by one writing process.
-
-    ``flock`` (``msvcrt.locking`` on Windows) belongs to the open file, so the kernel drops it when
-    the process dies: a stale lock of a killed run cannot exist. The file keeps the holder's pid
-    and host for the error message; it is left in place (deleting lock files races).
-    """
-
-    def __init__(self, store_path: Path) -> None:
-        self.path = store_path.with_name(store_path.name + ".lock")
-        self._file = None  # a file object, so the lock also goes when a forgotten store is collected
-
-    def acquire(self, store_path: Path) -> None:
-        try:
-            file = os.fdopen(os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644), "r+b", buffering=0)
-        except OSError as exc:
-            raise StoreError(
-                f"cannot create the writer lock {self.path} of store {store_path}: {exc.strerror}; "
-                "open the store read-only to look at it, or put the store in a writable folder"
-            ) from None
-        try:
-            if fcntl is not None:
-                fcntl.flock(file.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-            else:  # pragma: no cover - Windows
-                msvcrt.locking(file.fileno(), msvcrt.LK_NBLCK, 1)
-        except OSError:
-            holder = self._holder()
-            file.close()
-            raise StoreError(
-                f"store {store_path} is already open for writing by {holder}; one process writes a "
-                "store at a time. Wait for that run to finish (or stop it), or open the store "
-                "read-only (`corl runs`, `corl status`, export) to look at it"
-            ) from None
-        file.truncate(0)
-        file.write(f"{os.getpid()} {socket.gethostname()} {_now()}\n".encode())
-        self._file = file
-
-    def _holder(self) -> str:
-        try:
-            pid, host, since = self.path.read_text().split()
-        except (OSError, ValueError):
-            return "another process"
-        holder = f"process {pid} on {host} (since {since})"
-        if pid == str(os.getpid()) and host == socket.gethostname():
-            holder += ", that is this very process: close the other RunStore first"
-        return holder
-
-    def release(self) -> None:
-        if self._file is not None:
-            self._file.close()  # closing the file drops the lock
-            self._file = None
 
 
 class RunStore:
@@ -142,16 +45,21 @@ class RunStore:
         self.readonly = bool(readonly)
         self._create = bool(create) and not self.readonly
         self._db: sqlite3.Connection | None = None
-        self._lock: _WriterLock | None = None
+        self._lock: WriterLock | None = None
+        self._ready = False  # a valid, initialised store: close() folds its log into the file
         self._check_location(must_exist=not self._create)
         try:
-            if not self.readonly:
-                self._lock = _WriterLock(self.path)
-                self._lock.acquire(self.path)
+            if self.readonly:
+                _fold_leftover_log(self.path)
+            else:
+                self._lock = WriterLock(self.path)
+                self._lock.acquire(create=self._create)
+                self._check_single_name()
             self._db = self._connect()
             self._check_or_initialise()
+            self._ready = True
         except BaseException:
-            self.close()
+            self._discard_if_created()
             raise
 
     # -- opening -------------------------------------------------------------------------------
@@ -167,10 +75,28 @@ class RunStore:
         if must_exist and not self.path.exists():
             raise StoreError(f"no store at {self.path}; check the --store path (`corl runs` lists a store's runs)")
 
+    def _check_single_name(self) -> None:
+        """Refuse to write a file with several hard links: SQLite keeps one write-ahead log per name."""
+        links = os.stat(self.path).st_nlink
+        if links > 1:
+            raise StoreError(
+                f"store {self.path} has {links} names (hard links); SQLite keeps one write-ahead log per "
+                "name, so a run written under two names can lose trials. Write through a copy "
+                "(`cp`, or `sqlite3 STORE '.backup COPY'`) and remove the extra link"
+            )
+
     def _connect(self) -> sqlite3.Connection:
         try:
             if self.readonly:
                 uri = self.path.resolve().as_uri() + "?mode=ro"
+                if not _writable(self.path):  # read-only media: no -shm can be created
+                    if _log_holds_data(self.path):
+                        raise StoreError(
+                            f"store {self.path} sits in a read-only place with trials still in its write-ahead "
+                            f"log {_sidecar(self.path, '-wal').name}; copy the store with its -wal file to a "
+                            "writable folder and read it there (any corl command then folds the log in)"
+                        )
+                    uri += "&immutable=1"  # nothing can change it: read without locks or -shm
                 db = sqlite3.connect(uri, uri=True, isolation_level=None, timeout=_BUSY_TIMEOUT_S)
             else:
                 db = sqlite3.connect(str(self.path), isolation_level=None, timeout=_BUSY_TIMEOUT_S)
@@ -294,13 +220,19 @@ class RunStore:
         self, *, task: str, method: str, seed: int | None, config: Mapping[str, Any],
         versions: Mapping[str, str] | None = None,
     ) -> int:
-        """Start a run and return its id; ``versions`` defaults to :func:`library_versions` now."""
+        """Start a run and return its id.
+
+        ``versions`` defaults to :func:`library_versions` and :func:`corl.store.machine.machine_info`
+        (processor, BLAS kernel) now.
+        """
         for what, value in (("task", task), ("method", method)):
             if not isinstance(value, str) or not value:
                 raise InputError(f"{what} must be a non-empty string, got {value!r}")
         seed = None if seed is None else _as_int(seed, what="seed")
         config_json = _json(dict(config), what="config")
-        versions_json = _json(dict(library_versions() if versions is None else versions), what="versions")
+        if versions is None:
+            versions = {**library_versions(), **machine_info()}
+        versions_json = _json(dict(versions), what="versions")
         with self._transaction(f"create a run of {method} on {task}") as db:
             cursor = db.execute(
                 "INSERT INTO runs (created, task, method, seed, config, versions, status) "
@@ -316,8 +248,18 @@ class RunStore:
     @staticmethod
     def _run_info(row: tuple) -> RunInfo:
         rid, created, task, method, seed, config, versions, status, n_trials, n_told = row
-        return RunInfo(rid, created, task, method, seed, json.loads(config), json.loads(versions),
-                       RunStatus(status), n_trials, n_told)
+        what = f"run {rid}"
+        if not (isinstance(task, str) and isinstance(method, str)):
+            raise StoreError(f"the task or method of {what} is not text; the store is damaged")
+        if seed is not None and (not isinstance(seed, int) or seed < 0):
+            raise StoreError(f"the seed of {what} is {seed!r}, not a non-negative integer; the store is damaged")
+        try:
+            status = RunStatus(status)
+        except ValueError:
+            raise StoreError(f"the status of {what} is {status!r}; the store is damaged") from None
+        return RunInfo(rid, str(created), task, method, seed,
+                       _load_json(config, what=f"the configuration of {what}", kind=dict),
+                       _load_json(versions, what=f"the versions of {what}", kind=dict), status, n_trials, n_told)
 
     def runs(self) -> list[RunInfo]:
         """Every run, oldest first."""
@@ -424,9 +366,17 @@ class RunStore:
             w = _decode_array(w, w_shape, what=f"w of {what}")
             theta = _decode_array(theta, theta_shape, what=f"theta of {what}")
             proposal = Proposal(index, w, theta, step, rnd)
-            outcome = None if told_at is None else Outcome(bool(success), ret, json.loads(info))
+            outcome = None if told_at is None else self._outcome(success, ret, info, what)
             records.append(TrialRecord(proposal, outcome, proposed_at, told_at))
         return records
+
+    @staticmethod
+    def _outcome(success: Any, ret: Any, info: Any, what: str) -> Outcome:
+        info = _load_json(info, what=f"the outcome information of {what}", kind=dict)
+        try:
+            return Outcome(bool(success), ret, info)
+        except CorlError as exc:
+            raise StoreError(f"the outcome of {what} is not valid ({exc}); the store is damaged") from None
 
     def trials(self, run_id: int) -> list[TrialRecord]:
         """Every stored trial of a run in index order; ``outcome`` is None while pending."""
@@ -452,41 +402,35 @@ class RunStore:
         -------
         The paths of the table and of the ``.npz`` file.
         """
-        path = Path(path)
-        if path.suffix not in (".csv", ".parquet"):
-            raise InputError(f"export writes a .csv or .parquet file, got {path.name!r}")
-        if not path.parent.is_dir():
-            raise InputError(f"the folder {path.parent} to export into does not exist; create it first")
-        if path.suffix == ".parquet":
-            try:
-                import pyarrow as pa
-                import pyarrow.parquet as pq
-            except ImportError:
-                raise StoreError("exporting to Parquet needs pyarrow: `pip install pyarrow`, or export to .csv") from None
-        records = self.trials(run_id)
-        w_shapes = {r.proposal.w.shape for r in records}
-        if len(w_shapes) > 1:
-            raise StoreError(f"run {run_id} holds w of several shapes {sorted(w_shapes)}, which cannot be stacked")
-        columns = _table_columns(records)
-        if path.suffix == ".csv":
-            _write_atomically(path, lambda f: _write_csv(f, columns), text=True)
-        else:
-            _write_atomically(path, lambda f: pq.write_table(pa.table(columns), f))
-        npz = path.with_suffix(".w.npz")
-        index = np.array([r.index for r in records], dtype=np.int64)
-        w = np.stack([r.proposal.w for r in records]) if records else np.empty((0, 0))
-        _write_atomically(npz, lambda f: np.savez(f, index=index, w=w))
-        return path, npz
+        path = check_export_path(path)
+        return write_export(self.trials(run_id), run_id, path)
 
     # -- life cycle ----------------------------------------------------------------------------
     def close(self) -> None:
-        """Close the file and release the writer lock; closing twice is harmless."""
+        """Close the file and release the writer lock; closing twice is harmless.
+
+        A writer first folds its write-ahead log into the store file (checkpoint, then back to a
+        rollback journal), so a closed store is one file that can be copied alone.
+        """
         if self._db is not None:
+            if self._ready and not self.readonly:
+                _fold_log(self._db)
             self._db.close()
             self._db = None
         if self._lock is not None:
             self._lock.release()
             self._lock = None
+
+    def _discard_if_created(self) -> None:
+        """After a refused open: close, and remove the store file if this open created it."""
+        created = self._lock is not None and self._lock.created
+        if self._db is not None:
+            self._db.close()
+            self._db = None
+        if created:  # still locked: nobody else can have opened it meanwhile
+            for name in ("", "-wal", "-shm", "-journal"):
+                Path(str(self.path) + name).unlink(missing_ok=True)
+        self.close()
 
     def __enter__(self) -> RunStore:
         return self
@@ -498,3 +442,53 @@ class RunStore:
         mode = "read-only" if self.readonly else "writer"
         state = "closed" if self._db is None else "open"
         return f"RunStore({str(self.path)!r}, {mode}, {state})"
+
+
+# -- the store at rest: one file -------------------------------------------------------------------
+def _sidecar(path: Path, suffix: str) -> Path:
+    return path.with_name(path.name + suffix)
+
+
+def _writable(path: Path) -> bool:
+    """Whether SQLite can create its -shm beside ``path`` and write ``path``."""
+    return os.access(path.parent, os.W_OK | os.X_OK) and os.access(path, os.W_OK)
+
+
+def _log_holds_data(path: Path) -> bool:
+    try:
+        return _sidecar(path, "-wal").stat().st_size > 0
+    except OSError:
+        return False
+
+
+def _fold_log(db: sqlite3.Connection) -> None:
+    """Checkpoint the write-ahead log into the file, truncate it, and return to a rollback journal.
+
+    Best effort: a reader holding the log open makes SQLite refuse (after a short wait); the
+    trials are safe either way, and the next command that closes the store folds the log.
+    """
+    try:
+        db.execute(f"PRAGMA busy_timeout = {int(1000 * _FOLD_TIMEOUT_S)}")
+        db.execute("PRAGMA wal_checkpoint(TRUNCATE)").fetchall()
+        db.execute("PRAGMA journal_mode = DELETE").fetchall()  # removes the -wal and -shm files
+    except sqlite3.Error:
+        pass
+
+
+def _wal_header(path: Path) -> bool:
+    """Whether the file's header says WAL mode (bytes 18-19 are 2), i.e. it was not closed by this corl."""
+    try:
+        with open(path, "rb") as f:
+            return f.read(20)[18:20] == b"\x02\x02"
+    except OSError:
+        return False
+
+
+def _fold_leftover_log(path: Path) -> None:
+    """Before reading: fold the log a killed writer left behind, when no one writes the store now."""
+    if not ((_log_holds_data(path) or _wal_header(path)) and _writable(path)):
+        return
+    try:
+        RunStore(path, create=False).close()
+    except StoreError:
+        pass  # a live writer (it folds the log itself), a damaged file (the read says so), ...

@@ -11,13 +11,19 @@ import numpy as np
 from corl.errors import InputError
 from corl.problem import Task
 
-__all__ = ["load_task", "BUILTIN_TASKS"]
+__all__ = ["load_task", "check_task_spec", "BUILTIN_TASKS"]
 
 BUILTIN_TASKS = ("synthetic", "door")
 
 
 def load_task(spec: str, *, seed: int = 0) -> Task:
-    """Build a task: a built-in name, or ``package.module:factory`` (called with no arguments)."""
+    """Build a task: a built-in name, or ``package.module:factory`` (called with no arguments).
+
+    The spec comes from the command line only, never from a store: importing it runs its code.
+    Every failure (a malformed spec, an import or a factory that raises) is an :class:`InputError`.
+    """
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InputError(f"the seed must be a non-negative integer, got {seed!r}")
     if spec == "synthetic":
         from corl.tasks.synthetic import SyntheticTask
 
@@ -26,22 +32,50 @@ def load_task(spec: str, *, seed: int = 0) -> Task:
         from corl.tasks.door.task import DoorTask
 
         return DoorTask(seed=seed)
-    if ":" not in spec:
-        raise InputError(f"unknown task '{spec}'; use one of {', '.join(BUILTIN_TASKS)} "
-                         "or an import path 'package.module:make_task'")
-    module_name, _, attr = spec.partition(":")
+    check_task_spec(spec)
+    module_name, attr = _split_spec(spec)
     if os.getcwd() not in sys.path:  # like `python -m`: modules next to where the command runs
         sys.path.insert(0, os.getcwd())
     try:
         module = importlib.import_module(module_name)
     except ImportError as exc:
         raise InputError(f"cannot import task module '{module_name}' ({exc}); check the path and PYTHONPATH") from None
+    except Exception as exc:  # the module itself raised while being imported
+        raise InputError(f"importing task module '{module_name}' raised {type(exc).__name__}: {exc}; "
+                         "fix the module") from None
     factory = getattr(module, attr, None)
     if factory is None:
         raise InputError(f"module '{module_name}' has no attribute '{attr}'")
-    task = factory() if callable(factory) and not isinstance(factory, Task) else factory
+    try:
+        task = factory() if callable(factory) and not isinstance(factory, Task) else factory
+    except Exception as exc:
+        raise InputError(f"the task factory '{spec}' raised {type(exc).__name__}: {exc}; fix the factory "
+                         "(it is called with no arguments)") from None
     missing = [a for a in ("name", "theta_bounds", "w_bounds", "demonstration", "cost_residuals",
                            "projection", "theta_of", "rollout") if not hasattr(task, a)]
     if missing:
         raise InputError(f"'{spec}' did not give a task: it lacks {', '.join(missing)} (see corl.problem.Task)")
+    if not isinstance(task.name, str) or not task.name:
+        raise InputError(f"'{spec}' gave a task whose name is {task.name!r}; a task's name is a non-empty string")
     return task
+
+
+def _split_spec(spec: str) -> tuple[str, str]:
+    """``package.module:factory`` as (module, factory), or :class:`InputError` for anything else."""
+    module_name, _, attr = spec.partition(":")
+    parts = module_name.split(".")
+    if not (all(p.isidentifier() for p in parts) and attr.isidentifier()):
+        raise InputError(f"task '{spec}' is not an import path 'package.module:make_task' (dotted names, one "
+                         f"colon, no relative or empty parts); or use one of {', '.join(BUILTIN_TASKS)}")
+    return module_name, attr
+
+
+def check_task_spec(spec: str) -> str:
+    """``spec`` if it names a task in a valid form (without importing anything), else :class:`InputError`."""
+    if spec in BUILTIN_TASKS:
+        return spec
+    if ":" not in spec:
+        raise InputError(f"unknown task '{spec}'; use one of {', '.join(BUILTIN_TASKS)} "
+                         "or an import path 'package.module:make_task'")
+    _split_spec(spec)
+    return spec

@@ -1,0 +1,272 @@
+"""Every bad input of issue 13 against every ``corl`` subcommand, typed as a user would (subprocess).
+
+Each case runs in a fresh folder holding a store (``s.corl``: the synthetic task, trial 0 told,
+trial 1 pending), a store whose demonstration is pending (``demo.corl``), a plain file
+(``afile.txt``) and a user task module (``usertask.py``, whose rollouts leave ``rollouts.txt``).
+The table shows per case: the command, the input, the exit code, the first line of stderr,
+whether every store is unchanged (its SQL dump, or its bytes when it is no store), whether the
+command left any new file or folder behind, and whether a traceback (or an "internal error")
+reached the user. The last line counts tracebacks; it must read 0.
+
+    PYTHONPATH=src python benchmarks/hostile.py            # every case (~100, about a minute)
+    PYTHONPATH=src python benchmarks/hostile.py --fast     # the subset tests/test_hostile.py runs
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import shutil
+import sqlite3
+import subprocess
+import sys
+import tempfile
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+CORL = [sys.executable, "-m", "corl.cli"]
+
+
+def _env() -> dict[str, str]:
+    """The environment of every command: the corl this script imports comes first on the path."""
+    import corl
+
+    src = str(Path(corl.__file__).resolve().parents[1])
+    paths = [src] + [str(Path(p).resolve()) for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1", COLUMNS="200", PYTHONPATH=os.pathsep.join(paths))
+    env.pop("CORL_DEBUG", None)
+    return env
+
+USERTASK = """
+import pathlib
+from corl.tasks.synthetic import SyntheticTask
+
+class Counting(SyntheticTask):
+    name = "synthetic"  # stands in for the synthetic task of the stores
+    def rollout(self, w):
+        log = pathlib.Path(__file__).with_name("rollouts.txt")
+        log.write_text(log.read_text() + "x" if log.exists() else "x")
+        return super().rollout(w)
+
+def make():
+    return Counting((0.6, 0.4))
+
+def boom():
+    raise RuntimeError("the factory broke")
+
+def not_a_task():
+    return 42
+"""
+
+# Damage done to a copy of s.corl: (label, SQL) or raw bytes.
+DAMAGE = {
+    "config not JSON": "UPDATE runs SET config = '{not json'",
+    "versions a list": "UPDATE runs SET versions = '[1, 2]'",
+    "seed text": "UPDATE runs SET seed = 'abc'",
+    "outcome info not JSON": "UPDATE outcomes SET info = 'nope'",
+    "w_shape not JSON": "UPDATE trials SET w_shape = '[2' WHERE trial_index = 1",
+    "theta_shape negative": "UPDATE trials SET theta_shape = '[-1]' WHERE trial_index = 0",
+    "random bytes": b"\x13\x37" * 2048,
+    "truncated": None,  # the first 1000 bytes of the store
+    "empty file": b"",
+}
+TASK_SPECS = [":", "..:x", "usertask:", "usertask:boom", "usertask:not_a_task", "nosuchmodule:make", "a b:c"]
+
+
+@dataclass(frozen=True)
+class Case:
+    command: str
+    label: str
+    args: tuple[str, ...]
+    damage: str | None = None  # which damage to apply to s.corl first
+
+
+@dataclass
+class Result:
+    case: Case
+    code: int
+    first_line: str
+    unchanged: bool
+    left: list[str]
+    traceback: bool
+
+
+def _reader_cmds(store: str) -> dict[str, list[str]]:
+    return {
+        "status": ["status", "--store", store],
+        "runs": ["runs", "--store", store],
+        "export": ["export", "--store", store, "--out", "t.csv"],
+        "report": ["report", "--store", store, "--out", "rep", "--no-video", "--task", "synthetic"],
+        "ask": ["ask", "--store", store, "--task", "synthetic"],
+        "tell": ["tell", "--store", store, "--task", "synthetic", "--success", "yes", "--return", "0.1"],
+        "run --resume": ["run", "synthetic", "--store", store, "--resume", "--out", "o", "--no-video", "-q"],
+    }
+
+
+def cases() -> list[Case]:
+    out: list[Case] = []
+    for damage in DAMAGE:  # damaged stores against every command that opens a store
+        for command, args in _reader_cmds("s.corl").items():
+            out.append(Case(command, f"store: {damage}", tuple(args), damage))
+    for command, args in _reader_cmds("nothere.corl").items():
+        if command not in ("ask", "run --resume"):  # these two start a new store: not an error
+            out.append(Case(command, "store missing", tuple(args)))
+    for command, args in _reader_cmds("sub").items():
+        out.append(Case(command, "store is a folder", tuple(args)))
+    for spec in TASK_SPECS:  # task specs against every command that takes a task
+        out += [Case("run", f"task {spec!r}", ("run", spec, "--out", "o", "--no-video", "-q")),
+                Case("ask", f"task {spec!r}", ("ask", "--store", "new.corl", "--task", spec)),
+                Case("tell", f"task {spec!r}", ("tell", "--store", "s.corl", "--task", spec, "--success", "yes",
+                                                "--return", "0.1")),
+                Case("report", f"task {spec!r}", ("report", "--store", "s.corl", "--out", "rep", "--task", spec))]
+    out += [
+        Case("run", "--seed -1", ("run", "usertask:make", "--seed", "-1", "--out", "o", "-q")),
+        Case("run", "--seed 2^64", ("run", "usertask:make", "--seed", str(2**64), "--out", "o", "-q")),
+        Case("run", "--method NOPE", ("run", "usertask:make", "--method", "NOPE", "--out", "o", "-q")),
+        Case("run", "--out FILE", ("run", "usertask:make", "--out", "afile.txt", "-q")),
+        Case("run", "--out under a FILE", ("run", "usertask:make", "--out", "afile.txt/o", "-q")),
+        Case("run", "--resume --seed other", ("run", "synthetic", "--store", "s.corl", "--resume", "--seed", "5",
+                                              "--out", "o", "-q")),
+        Case("ask", "--seed -1", ("ask", "--store", "new.corl", "--task", "usertask:make", "--seed", "-1")),
+        Case("ask", "--method NOPE", ("ask", "--store", "new.corl", "--task", "usertask:make", "--method", "NOPE")),
+        Case("ask", "--out FILE", ("ask", "--store", "new.corl", "--task", "usertask:make", "--out", "afile.txt")),
+        *[Case("ask", f"--rate {r}", ("ask", "--store", "new.corl", "--task", "usertask:make", "--rate", r))
+          for r in ("nan", "inf", "1e12", "0", "-5")],
+        Case("tell", "demonstration --success no", ("tell", "--store", "demo.corl", "--task", "synthetic",
+                                                    "--success", "no")),
+        Case("tell", "--success no --return 0.3", ("tell", "--store", "s.corl", "--task", "synthetic",
+                                                   "--success", "no", "--return", "0.3")),
+        Case("tell", "--success maybe", ("tell", "--store", "s.corl", "--task", "synthetic", "--success", "maybe")),
+        Case("tell", "--success yes (no return)", ("tell", "--store", "s.corl", "--task", "synthetic",
+                                                   "--success", "yes")),
+        *[Case("tell", f"--return {r}", ("tell", "--store", "s.corl", "--task", "synthetic", "--success", "yes",
+                                         "--return", r)) for r in ("nan", "inf", "lots")],
+        Case("status", "--run 99", ("status", "--store", "s.corl", "--run", "99")),
+        Case("status", "--run 2^70", ("status", "--store", "s.corl", "--run", str(2**70))),
+        Case("export", "--out DIR", ("export", "--store", "s.corl", "--out", "sub")),
+        Case("export", "--out .xlsx", ("export", "--store", "s.corl", "--out", "t.xlsx")),
+        Case("export", "--out in missing folder", ("export", "--store", "s.corl", "--out", "nofolder/t.csv")),
+        Case("report", "--out FILE", ("report", "--store", "s.corl", "--out", "afile.txt")),
+        Case("report", "--run 99", ("report", "--store", "s.corl", "--out", "rep", "--run", "99")),
+        Case("bench synthetic", "--seed -1", ("bench", "synthetic", "--seed", "-1", "--starts", "1", "--out", "b")),
+        Case("bench synthetic", "--jobs 0", ("bench", "synthetic", "--jobs", "0", "--starts", "1", "--out", "b")),
+        Case("bench synthetic", "--jobs -5", ("bench", "synthetic", "--jobs", "-5", "--starts", "1", "--out", "b")),
+        Case("bench synthetic", "--starts 0", ("bench", "synthetic", "--starts", "0", "--out", "b")),
+        Case("bench synthetic", "--out FILE", ("bench", "synthetic", "--starts", "1", "--out", "afile.txt")),
+        Case("bench synthetic", "--methods NOPE", ("bench", "synthetic", "--methods", "NOPE", "--out", "b")),
+        Case("bench door", "--jobs 0", ("bench", "door", "--jobs", "0", "--out", "d")),
+        Case("bench door", "--out FILE", ("bench", "door", "--out", "afile.txt")),
+        Case("bench door", "--grid 1x0", ("bench", "door", "--grid", "1x0", "--out", "d")),
+        Case("bench door", "--force-noise nan", ("bench", "door", "--force-noise", "nan", "--out", "d")),
+    ]
+    return out
+
+
+# The subset tests/test_hostile.py runs: one case of each kind, every subcommand at least once.
+FAST = {("status", "store: config not JSON"), ("export", "store: w_shape not JSON"), ("runs", "store: random bytes"),
+        ("run --resume", "store: versions a list"), ("run", "task ':'"), ("ask", "task '..:x'"),
+        ("tell", "task 'usertask:boom'"), ("report", "task 'usertask:not_a_task'"), ("run", "--seed -1"),
+        ("ask", "--rate 1e12"), ("export", "--out DIR"), ("tell", "demonstration --success no"),
+        ("tell", "--success no --return 0.3"), ("bench synthetic", "--jobs 0"), ("bench door", "--jobs 0")}
+
+
+def prepare(folder: Path) -> None:
+    """The template every case copies: stores, a file, a folder and the user task."""
+    env = _env()
+
+    def corl(*args: str) -> None:
+        subprocess.run(CORL + list(args), cwd=folder, env=env, check=True, capture_output=True)
+
+    (folder / "usertask.py").write_text(USERTASK)
+    (folder / "afile.txt").write_text("a file, not a folder\n")
+    (folder / "sub").mkdir()
+    corl("ask", "--store", "demo.corl", "--task", "synthetic", "--out", "trials")
+    shutil.copy(folder / "demo.corl", folder / "s.corl")
+    corl("tell", "--store", "s.corl", "--task", "synthetic", "--success", "yes", "--return", "0.2")
+    corl("ask", "--store", "s.corl", "--task", "synthetic", "--out", "trials")
+
+
+def _damage(store: Path, damage: str) -> None:
+    spec = DAMAGE[damage]
+    if damage == "truncated":
+        store.write_bytes(store.read_bytes()[:1000])
+    elif isinstance(spec, bytes):
+        store.write_bytes(spec)
+    else:
+        with contextlib.closing(sqlite3.connect(store)) as db, db:
+            db.execute(spec)
+
+
+def _state(folder: Path) -> tuple[list[str], dict[str, object]]:
+    """(every path under ``folder``, each store's content: its SQL dump, or its bytes if it is no store)."""
+    paths = sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if "__pycache__" not in p.parts)
+    stores = {}
+    for name in ("s.corl", "demo.corl"):
+        path = folder / name
+        try:
+            uri = f"{path.resolve().as_uri()}?mode=ro&immutable=1"  # creates no -wal or -shm file
+            with contextlib.closing(sqlite3.connect(uri, uri=True)) as db:
+                stores[name] = list(db.iterdump())
+        except sqlite3.Error:
+            stores[name] = path.read_bytes()
+    return paths, stores
+
+
+def run_case(case: Case, template: Path) -> Result:
+    with tempfile.TemporaryDirectory(prefix="corl-hostile-") as tmp:
+        folder = Path(tmp) / "case"
+        shutil.copytree(template, folder)
+        if case.damage is not None:
+            _damage(folder / "s.corl", case.damage)
+        paths, stores = _state(folder)
+        res = subprocess.run(CORL + list(case.args), cwd=folder, env=_env(), capture_output=True, text=True,
+                             timeout=300)
+        after_paths, after_stores = _state(folder)
+        left = sorted(set(after_paths) - set(paths))
+        lines = res.stderr.strip().splitlines()
+        traceback = "Traceback" in res.stderr + res.stdout or "internal error" in res.stderr
+        return Result(case, res.returncode, lines[0] if lines else "", after_stores == stores, left, traceback)
+
+
+def table(results: list[Result], width: int = 96) -> str:
+    rows = [f"| {'command':<15} | {'input':<28} | exit | {'first line of stderr':<{width}} | unchanged | left | tb |",
+            f"|{'-' * 17}|{'-' * 30}|------|{'-' * (width + 2)}|-----------|------|----|"]
+    for r in results:
+        line = r.first_line if len(r.first_line) <= width else r.first_line[:width - 3] + "..."
+        rows.append(f"| {r.case.command:<15} | {r.case.label[:28]:<28} | {r.code:>4} | {line:<{width}} | "
+                    f"{'yes' if r.unchanged else 'NO':<9} | {len(r.left):>4} | {'YES' if r.traceback else '':<2} |")
+    return "\n".join(rows)
+
+
+def run_all(selected: list[Case], workers: int = 2) -> list[Result]:
+    with tempfile.TemporaryDirectory(prefix="corl-hostile-template-") as tmp:
+        template = Path(tmp)
+        prepare(template)
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            return list(pool.map(lambda c: run_case(c, template), selected))
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--fast", action="store_true", help="only the subset the test suite runs")
+    parser.add_argument("--workers", type=int, default=2)
+    args = parser.parse_args()
+    selected = [c for c in cases() if not args.fast or (c.command, c.label) in FAST]
+    results = run_all(selected, workers=args.workers)
+    print(table(results))
+    tracebacks = sum(r.traceback for r in results)
+    succeeded = sum(r.code == 0 for r in results)
+    changed = sum(not r.unchanged for r in results)
+    left = sum(bool(r.left) for r in results)
+    print(f"\n{len(results)} cases: {tracebacks} tracebacks, {succeeded} accepted (exit 0), "
+          f"{changed} changed a store, {left} left files behind")
+    for r in results:
+        if r.left:
+            print(f"  {r.case.command} {r.case.label}: left {', '.join(r.left)}")
+    return 1 if tracebacks else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,174 @@
+"""Bad input to the CLI (corl/cli.py, corl/arguments.py, corl/tasks/registry.py, corl/session.py):
+one line ``error: ...``, exit 2, no traceback, no rollout, nothing created and the store unchanged."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import sqlite3
+import sys
+
+import pytest
+from typer.testing import CliRunner
+
+from corl.cli import app
+
+runner = CliRunner()
+
+# A user task that counts its rollouts in a file beside it, and factories that fail.
+COUNTING = """
+import pathlib
+from corl.tasks.synthetic import SyntheticTask
+
+class Counting(SyntheticTask):
+    name = "counting"
+    def rollout(self, w):
+        log = pathlib.Path(__file__).with_name("rollouts.txt")
+        log.write_text(log.read_text() + "x" if log.exists() else "x")
+        return super().rollout(w)
+
+def make():
+    return Counting((0.6, 0.4))
+
+def boom():
+    raise RuntimeError("the factory broke")
+
+def not_a_task():
+    return 42
+"""
+
+
+@pytest.fixture
+def workdir(tmp_path, monkeypatch):
+    (tmp_path / "usertask.py").write_text(COUNTING)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    yield tmp_path
+    sys.modules.pop("usertask", None)
+
+
+def dump(path):
+    with contextlib.closing(sqlite3.connect(f"file:{path}?mode=ro", uri=True)) as db:
+        return list(db.iterdump())
+
+
+def listing(folder):
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if "__pycache__" not in p.parts)
+
+
+def asked_store(folder):
+    """A store whose demonstration (trial 0) is pending, as `corl ask` leaves it."""
+    res = runner.invoke(app, ["ask", "--store", str(folder / "s.corl"), "--task", "synthetic"])
+    assert res.exit_code == 0, res.output
+    return folder / "s.corl"
+
+
+def refused(args, folder, message):
+    before = listing(folder)
+    res = runner.invoke(app, args)
+    assert res.exit_code == 2, (args, res.output)
+    assert isinstance(res.exception, SystemExit), (args, res.exception)  # no traceback
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], (args, res.stderr)
+    assert listing(folder) == before, args  # no store, .lock, output folder or file left behind
+    return res
+
+
+BAD_RUNS = [
+    (["run", "usertask:make", "--seed", "-1"], "--seed must be an integer"),
+    (["run", "usertask:make", "--method", "NOPE"], "unknown method"),
+    (["run", ":"], "is not an import path"),
+    (["run", "..:x"], "is not an import path"),
+    (["run", "usertask:"], "is not an import path"),
+    (["run", "usertask:boom"], "raised RuntimeError: the factory broke"),
+    (["run", "usertask:not_a_task"], "did not give a task"),
+    (["run", "nosuchmodule:make"], "cannot import"),
+    (["run", "usertask:make", "--out", "afile.txt"], "is a file"),
+    (["run", "usertask:make", "--store", "."], "is a folder"),
+    (["bench", "synthetic", "--jobs", "0", "--starts", "1", "--out", "b"], "--jobs must be"),
+    (["bench", "synthetic", "--seed", "-1", "--starts", "1", "--out", "b"], "--seed must be"),
+    (["bench", "synthetic", "--starts", "1", "--out", "afile.txt"], "is a file"),
+    (["bench", "door", "--jobs", "0", "--out", "d"], "--jobs must be"),
+    (["bench", "door", "--force-noise", "inf", "--out", "d"], "--force-noise"),
+    (["ask", "--store", "new/s.corl", "--task", "usertask:make", "--seed", "-1"], "--seed must be"),
+    (["ask", "--store", "new/s.corl", "--task", ":"], "is not an import path"),
+    (["ask", "--store", "new/s.corl", "--task", "usertask:boom"], "the factory broke"),
+    (["ask", "--store", "new/s.corl", "--task", "usertask:make", "--method", "NOPE"], "unknown method"),
+    (["ask", "--store", "new/s.corl", "--task", "usertask:make", "--rate", "nan"], "rate must be"),
+    (["ask", "--store", "new/s.corl", "--task", "usertask:make", "--rate", "inf"], "rate must be"),
+    (["ask", "--store", "new/s.corl", "--task", "usertask:make", "--rate", "1e12"], "rate must be"),
+    (["ask", "--store", "new/s.corl", "--task", "usertask:make", "--rate", "0"], "rate must be"),
+    (["export", "--store", "s.corl", "--out", "."], "is a folder"),
+    (["export", "--store", "s.corl", "--out", "t.xlsx"], ".csv or .parquet"),
+    (["export", "--store", "s.corl", "--out", "nofolder/t.csv"], "does not exist"),
+    (["report", "--store", "s.corl", "--out", "afile.txt"], "is a file"),
+    (["report", "--store", "s.corl", "--out", "rep", "--task", "..:x"], "is not an import path"),
+    (["status", "--store", "nothing.corl"], "no store at"),
+    (["tell", "--store", "s.corl", "--task", "synthetic", "--success", "no", "--return", "0.3"],
+     "a failed trial is told without a return"),
+    (["tell", "--store", "s.corl", "--task", ":", "--success", "yes", "--return", "0.3"], "is not an import path"),
+]
+
+
+@pytest.mark.parametrize("args, message", BAD_RUNS, ids=[" ".join(a)[:60] for a, _ in BAD_RUNS])
+def test_bad_argument_is_one_line_exit_2_and_leaves_nothing(workdir, args, message):
+    store = asked_store(workdir)
+    (workdir / "afile.txt").write_text("not a folder")
+    before = dump(store)
+    refused(args, workdir, message)
+    assert dump(store) == before
+    assert not (workdir / "rollouts.txt").exists()  # not one rollout before the refusal
+
+
+def test_a_refused_run_after_its_store_opened_leaves_no_store(workdir):
+    """The task is fine but the method cannot run it (no w_bounds): refused after the checks."""
+    (workdir / "nobox.py").write_text(COUNTING + "\nclass NoBox(Counting):\n    w_bounds = None\n"
+                                      "def make_nobox():\n    return NoBox((0.6, 0.4))\n")
+    refused(["run", "nobox:make_nobox", "--method", "CMA", "--out", "out"], workdir, "needs task.w_bounds")
+    assert not (workdir / "out").exists()
+
+
+def test_a_failed_demonstration_is_refused_and_changes_nothing(workdir):
+    store = asked_store(workdir)
+    before = dump(store)
+    refused(["tell", "--store", str(store), "--task", "synthetic", "--success", "no"], workdir,
+            "the demonstration failed")
+    assert dump(store) == before
+    status = json.loads(runner.invoke(app, ["status", "--store", str(store), "--json"]).stdout)
+    assert status["status"] == "running" and status["pending"] == 1 and status["told"] == 0
+    res = runner.invoke(app, ["tell", "--store", str(store), "--task", "synthetic", "--success", "yes",
+                              "--return", "0.25"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout) == {"trial": 0, "success": True, "return": 0.25, "done": False}
+
+
+def test_library_tell_refuses_a_failed_demonstration_before_storing(tmp_path):
+    from corl.errors import DemonstrationFailedError
+    from corl.problem import Outcome
+    from corl.session import StoredRun
+    from corl.store import RunStore
+    from corl.tasks.synthetic import SyntheticTask
+
+    task = SyntheticTask((0.6, 0.4))
+    with RunStore(tmp_path / "a.corl") as db:
+        session = StoredRun.start(db, task, task_spec="synthetic", method="CORL+PIBU", seed=0)
+        session.ask()
+        with pytest.raises(DemonstrationFailedError, match="nothing was stored"):
+            session.tell(Outcome(False))
+        assert db.pending(session.run_id).index == 0 and db.latest_run().status.value == "running"
+        session.tell(Outcome(True, 0.5))  # the learner is still usable
+        assert session.ask().index == 1
+
+
+def test_an_unexpected_error_is_one_line_from_the_entry_point(workdir, monkeypatch, capsys):
+    import corl.cli as cli
+
+    def broken():
+        raise ZeroDivisionError("a bug")
+
+    monkeypatch.setattr(cli, "app", broken)
+    with pytest.raises(SystemExit) as exit_info:
+        cli.main()
+    assert exit_info.value.code == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: internal error ZeroDivisionError: a bug") and len(err.splitlines()) == 1
