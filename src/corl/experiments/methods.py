@@ -9,7 +9,7 @@ Budgets (the paper does not state them): methods over ``w`` get ``direct_budget`
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import Callable
 
 import numpy as np
@@ -17,13 +17,13 @@ import numpy as np
 from corl.acquisition import PIBUConfig, PIBUVariant
 from corl.direct import DirectSearch
 from corl.errors import InputError
-from corl.learner import CORL, CORLConfig
-from corl.optimizers.bo import BOConfig, PIBUOptimizer, StopRule, UCBOptimizer
+from corl.learner import CORL
+from corl.optimizers.bo import PIBUOptimizer, StopRule, UCBOptimizer
 from corl.optimizers.cmaes import CMAES, CMAESConfig
-from corl.optimizers.gpconfig import SYNTHETIC_CLASSIFIER, SYNTHETIC_REGRESSION, ClassifierConfig, RegressionConfig
 from corl.optimizers.power import PoWER, PoWERConfig
 from corl.optimizers.sal import SALConfig, SALOptimizer
 from corl.problem import Task
+from corl.settings import MethodSettings  # re-exported: defined below the tasks
 
 __all__ = ["MethodSettings", "METHODS", "PAPER_FIG1", "make_method"]
 
@@ -38,28 +38,6 @@ PAPER_FIG1 = {  # found/100, failures mean, std, max distance mean, std
     "CORL+SAL": (99, 1.74, 0.56, 0.06, 0.11),
 }
 METHODS = tuple(PAPER_FIG1) + ("CORL+PIBU(literal)",)
-
-
-@dataclass(frozen=True)
-class MethodSettings:
-    """Everything a method needs besides the task; the defaults are the synthetic benchmark's."""
-
-    regression: RegressionConfig = SYNTHETIC_REGRESSION
-    classifier: ClassifierConfig = SYNTHETIC_CLASSIFIER
-    corl: CORLConfig = field(default_factory=CORLConfig)
-    direct_budget: int = 100
-    rl_budget: int = 50
-    failure_return: float = -15.0
-    ucb_kappa: float = 2.0
-    cma_sigma0: float = 0.3
-    # Per-dimension unit of theta distances in the stopping rules (None: theta's own units). A
-    # task whose length scales are stretched per dimension (ARD) gives the same stretch here, so
-    # that "near a sampled point" means the same thing along every axis.
-    theta_scale: tuple[float, ...] | None = None
-
-    def bo(self, stop_rule: StopRule = StopRule.NEAR_SAMPLED, stop_distance: float = 1e-3) -> BOConfig:
-        return BOConfig(self.regression, self.classifier, stop_rule=stop_rule, stop_distance=stop_distance,
-                        distance_scale=self.theta_scale)
 
 
 def _factory(name: str, s: MethodSettings) -> Callable:
@@ -93,8 +71,11 @@ def make_method(name: str, task: Task, *, seed: int = 0, settings: MethodSetting
     hyperparameters from Sec. VIII-B) or, for tasks without them, the synthetic benchmark's.
     """
     if settings is None:
-        preset = getattr(task, "method_settings", None)
+        preset = getattr(task, "method_settings", None)  # corl.problem.HasMethodSettings
         settings = preset() if callable(preset) else MethodSettings()
+        if not isinstance(settings, MethodSettings):
+            raise InputError(f"task '{task.name}': method_settings() returned {type(settings).__name__}; "
+                             "it must return a corl.settings.MethodSettings")
     if name.startswith("CORL+"):
         inner = _factory(name[len("CORL+"):], settings)
         budget = settings.corl.max_rl_trials if settings.rl_budget is None else settings.rl_budget
