@@ -77,10 +77,11 @@ class CORLConfig:
     reuse_data: bool = True
     max_phase_steps: int = 0  # phase steps (Eq. 10) after the trajectory steps; needs task.spline
     solver: SolverConfig = field(default_factory=SolverConfig)
+    demo_tolerance: float = 1e-3  # the demonstration needs max|h(w0, theta0)| <= this, in h's units
 
     def __post_init__(self) -> None:
-        if min(self.eps_max, self.eps_w, self.eps_theta) <= 0:
-            raise InputError("eps_max, eps_w and eps_theta must be positive")
+        if min(self.eps_max, self.eps_w, self.eps_theta, self.demo_tolerance) <= 0:
+            raise InputError("eps_max, eps_w, eps_theta and demo_tolerance must be positive")
         if min(self.max_rounds, self.max_optimization_steps, self.max_rl_trials) < 1:
             raise InputError("max_rounds, max_optimization_steps and max_rl_trials must be >= 1")
 
@@ -196,7 +197,7 @@ class CORL:
     def _algorithm(self) -> Iterator[Proposal]:
         task, cfg = self.task, self.config
         bounds = task.theta_bounds
-        demo = check_demonstration(task, solver=cfg.solver)  # h(w0, theta0) ~ 0, before any rollout
+        demo = check_demonstration(task, tolerance=cfg.demo_tolerance)  # h(w0, theta0) ~ 0, before any rollout
         w0 = as_vector(demo.w, name="demonstration w")
         theta0 = check_theta(demo.theta, bounds, task=task.name)
         outcome = yield self._proposal(w0, theta0, "demonstration")

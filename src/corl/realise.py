@@ -32,11 +32,11 @@ from corl.numerics import as_vector
 from corl.problem import Demonstration, Task, check_theta
 from corl.trajectory.solver import FunctionProblem, SolveResult, SolverConfig, project, solve
 
-__all__ = ["FEASIBILITY_FACTOR", "DEMONSTRATION_FACTOR", "Realisation", "realise", "project_theta", "feasible",
+__all__ = ["FEASIBILITY_FACTOR", "DEMONSTRATION_TOLERANCE", "Realisation", "realise", "project_theta", "feasible",
            "constraint_violation", "check_demonstration", "project_demonstration"]
 
 FEASIBILITY_FACTOR = 10.0  # a realisation is feasible when max|h| <= this x SolverConfig.tol_constraint
-DEMONSTRATION_FACTOR = 1e3  # the demonstration is accepted when max|h(w0, theta0)| <= this x tol_constraint
+DEMONSTRATION_TOLERANCE = 1e-3  # default of CORLConfig.demo_tolerance: max|h(w0, theta0)| in h's units
 _CONTINUATION = (8, 64)  # pieces of the continuation from theta* to theta, tried in turn
 
 
@@ -142,27 +142,31 @@ def constraint_violation(task: Task, w, theta) -> float:
 
 
 def check_demonstration(task: Task, demonstration: Demonstration | None = None,
-                        solver: SolverConfig = SolverConfig()) -> Demonstration:
+                        tolerance: float = DEMONSTRATION_TOLERANCE) -> Demonstration:
     """Check that the demonstration satisfies ``h(w0, theta0) = 0`` before anything is rolled out.
 
-    The tolerance is ``DEMONSTRATION_FACTOR * solver.tol_constraint`` on ``max |h|`` (1e-3 in the
-    units of h with the default solver): looser than the feasibility of a projection, since a
-    recorded demonstration is fitted, but tight enough that the first optimization step does not
-    begin by moving the contact (a fit that misses its waypoints by millimetres is caught).
+    ``tolerance`` bounds ``max |h(w0, theta0)|`` in h's units (the learner passes
+    ``CORLConfig.demo_tolerance``, 1e-3 by default: a millimetre where h is a contact position).
+    It is looser than the feasibility of a projection, since a recorded demonstration is fitted,
+    but tight enough that a fit which misses its waypoints by millimetres is caught instead of being
+    silently moved by the first optimization step.
 
     Returns the demonstration as vectors; raises :class:`corl.errors.InputError` naming how far it
     is and how to fix it (:func:`project_demonstration`).
     """
     demo = task.demonstration() if demonstration is None else demonstration
+    if not isinstance(demo, Demonstration):
+        raise InputError(f"task '{task.name}': demonstration() returned {type(demo).__name__}; it must return "
+                         "corl.problem.Demonstration(w0, theta0)")
     w0 = as_vector(demo.w, name=f"demonstration().w of task '{task.name}'")
     theta0 = check_theta(demo.theta, task.theta_bounds, task=task.name)
     violation = constraint_violation(task, w0, theta0)
-    tolerance = DEMONSTRATION_FACTOR * solver.tol_constraint
     if not violation <= tolerance:
         raise InputError(
             f"the demonstration of task '{task.name}' does not satisfy h: max|h(w0, theta0)| = {violation:.3g} > "
-            f"tolerance {tolerance:.3g}; project it onto h = 0 with corl.realise.project_demonstration(task) and "
-            "return that from task.demonstration() (or give the theta0 that w0 realises, task.theta_of(w0))")
+            f"tolerance {tolerance:.3g} (CORLConfig.demo_tolerance); project it onto h = 0 with "
+            "corl.realise.project_demonstration(task, demo) and return that from task.demonstration() "
+            "(or give the theta0 that w0 realises, task.theta_of(w0))")
     return Demonstration(w0, theta0)
 
 
