@@ -188,6 +188,11 @@ def test_rollout_every_step_flag_is_stored_and_checked_on_resume(module, tmp_pat
         assert info.config["learner"]["rollout_every_step"] is False
         steps = [t.proposal.step for t in db.trials(info.id)]
     assert steps.count("optimization") == 1  # one rollout of the converged step
+    from corl.session import StoredRun
+
+    with RunStore(out / "run.corl") as db:  # reopened (resume, corl report): the same configuration, replayed
+        reopened = StoredRun.open(db, load_task(f"{module}:make_task"))
+        assert reopened.learner.config.rollout_every_step is False and len(reopened.history) == len(steps)
     one_line_error(invoke("run", f"{module}:make_task", "--out", out, "--resume", "--rollout-every-step"),
                    "differs from the run being resumed")
 
