@@ -136,10 +136,11 @@ def test_a_demonstration_off_h_is_refused_before_any_rollout():
             return Demonstration(self.w0.copy(), np.array([0.02]))  # w0 realises theta = 0, not 0.02
 
     task = Off()
-    learner = CORL(task, lambda b, x0, rng: Scripted(b, []))
     with pytest.raises(InputError, match=r"max\|h\(w0, theta0\)\| = 0.02 .*corl.realise.project_demonstration"):
-        learner.ask()
+        CORL(task, lambda b, x0, rng: Scripted(b, []))
     assert task.rollouts == []
+    loose = CORL(task, lambda b, x0, rng: Scripted(b, []), CORLConfig(demo_tolerance=0.05))  # a task may state its own
+    assert loose.ask().step == "demonstration"
 
 
 def test_project_demonstration_moves_w0_onto_h():

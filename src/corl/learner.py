@@ -32,8 +32,8 @@ Decisions beyond the paper (see README):
 * A failed w is never proposed again: every w within ``eps_w`` of a failed trial's w is refused
   (step 1 and phase steps stop before it; in step 2 the theta is told the recorded failure
   without a rollout, ``info["known_failure"] = True``).
-* Before the demonstration is rolled out, ``h(w0, theta0) ~ 0`` is checked
-  (:func:`corl.realise.check_demonstration`).
+* ``h(w0, theta0) ~ 0`` is checked when the learner is built, before anything is rolled out
+  (:func:`corl.realise.check_demonstration`, ``CORLConfig.demo_tolerance``).
 * With ``reuse_data`` (default), D keeps the step-2 data of earlier rounds: R and S depend on
   theta only (Sec. IV), so the data stays valid and a converged black-box step stops at once.
 * Eq. 18 may have no minimiser (the infimum can sit where h is singular); any feasible result
@@ -51,9 +51,8 @@ import numpy as np
 
 from corl.errors import DemonstrationFailedError, InputError, StateError
 from corl.loop import drive
-from corl.numerics import as_vector
 from corl.optimizers.base import BlackBoxOptimizer
-from corl.problem import Bounds, Outcome, Proposal, Task, check_theta
+from corl.problem import Bounds, Outcome, Proposal, Task
 from corl.realise import check_demonstration, feasible, realise
 from corl.trajectory.solver import FunctionProblem, SolverConfig, solve
 
@@ -129,6 +128,8 @@ class CORL:
         self.rounds = 0
         self.optimizers: list[BlackBoxOptimizer] = []
         self._best: Best | None = None
+        # h(w0, theta0) ~ 0 is checked here, before anything can be rolled out
+        self._demonstration = check_demonstration(task, tolerance=config.demo_tolerance)
         self._pending: Proposal | None = None
         self._finished = False
         self._gen: Generator[Proposal, Outcome, None] = self._algorithm()
@@ -196,10 +197,7 @@ class CORL:
 
     def _algorithm(self) -> Iterator[Proposal]:
         task, cfg = self.task, self.config
-        bounds = task.theta_bounds
-        demo = check_demonstration(task, tolerance=cfg.demo_tolerance)  # h(w0, theta0) ~ 0, before any rollout
-        w0 = as_vector(demo.w, name="demonstration w")
-        theta0 = check_theta(demo.theta, bounds, task=task.name)
+        w0, theta0 = self._demonstration.w, self._demonstration.theta  # checked in __init__
         outcome = yield self._proposal(w0, theta0, "demonstration")
         if not outcome.success:
             raise DemonstrationFailedError(
