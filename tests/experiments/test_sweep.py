@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from functools import partial
 
 import numpy as np
 import pytest
@@ -14,7 +13,6 @@ from corl.errors import InputError
 from corl.experiments.sweep import TaskSpec, parse_grid, sweep_task, write_sweep
 from corl.problem import Bounds, Demonstration, Outcome
 from corl.realise import realise
-from corl.tasks.synthetic import SyntheticTask
 
 CENTRE, RADIUS = np.array([0.2, -0.1]), 0.45
 

@@ -256,13 +256,12 @@ def sweep_command(task: str, grid: str, out, *, seed: int = 0, jobs: int = 1, ba
     spec = TaskSpec(task, seed)
     the_task = spec()
     sizes = parse_grid(grid, the_task.theta_bounds.dim)
-    progress = None
-    if tracker is not None:
-        tracker.add_stage("grid", total=math.prod(sizes))
-
-        def progress(done, total, ok):
+    def progress(done, total, ok):
+        if tracker is not None:
             tracker.update("grid", done=done, total=total, note=f"{ok} succeed")
 
+    if tracker is not None:
+        tracker.add_stage("grid", total=math.prod(sizes))
     result = sweep_task(spec, sizes, jobs=jobs, backend=backend, address=address, progress=progress)
     files = write_sweep(result, out, labels=getattr(the_task, "theta_labels", None), title=the_task.name)
     return {"task": the_task.name, "grid": list(sizes), "points": int(result.success.size),
