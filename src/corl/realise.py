@@ -157,7 +157,7 @@ def check_demonstration(task: Task, demonstration: Demonstration | None = None,
     demo = task.demonstration() if demonstration is None else demonstration
     if not isinstance(demo, Demonstration):
         raise InputError(f"task '{task.name}': demonstration() returned {type(demo).__name__}; it must return "
-                         "corl.problem.Demonstration(w0, theta0)")
+                         "corl.problem.Demonstration(w, theta)")
     w0 = as_vector(demo.w, name=f"demonstration().w of task '{task.name}'")
     theta0 = check_theta(demo.theta, task.theta_bounds, task=task.name)
     violation = constraint_violation(task, w0, theta0)
