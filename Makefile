@@ -1,5 +1,7 @@
 # The two commands the README opens with: `make demo` and `make test`.
-# Each creates .venv from scratch when missing and installs what it needs.
+# Each creates .venv from scratch when missing and installs what it needs, at the exact versions
+# of constraints.txt (the published numbers). pyproject.toml declares ranges; `make test-lowest`
+# installs the lowest of them (constraints-lowest.txt) in .venv-lowest and runs the fast tests.
 PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
@@ -9,12 +11,12 @@ export OPENBLAS_NUM_THREADS ?= 1
 export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
-.PHONY: demo test test-fast bench synthetic docs clean
+.PHONY: demo test test-fast test-lowest constraints bench synthetic docs clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[test,ray,dask,docs]"
+	$(PY) -m pip install --quiet -c constraints.txt -e ".[test,ray,dask,docs]"
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -29,6 +31,24 @@ test: $(STAMP)
 test-fast: $(STAMP)
 	$(PY) -m pytest -q -m "not slow"
 
+# The lowest declared versions (CI runs it after `make test`): the fast tests only.
+LOWEST := .venv-lowest
+LOWEST_STAMP := $(LOWEST)/.installed
+$(LOWEST_STAMP): pyproject.toml constraints-lowest.txt
+	rm -rf $(LOWEST)
+	$(PYTHON) -m venv $(LOWEST)
+	$(LOWEST)/bin/python -m pip install --quiet --upgrade pip
+	$(LOWEST)/bin/python -m pip install --quiet -c constraints-lowest.txt -e ".[test]"
+	touch $(LOWEST_STAMP)
+
+test-lowest: $(LOWEST_STAMP)
+	$(LOWEST)/bin/python -c "import numpy, scipy, mujoco; print('lowest: numpy', numpy.__version__, 'scipy', scipy.__version__, 'mujoco', mujoco.__version__)"
+	$(LOWEST)/bin/python -m pytest -q -m "not slow" -p no:cacheprovider
+
+# Regenerate constraints.txt from .venv (after upgrading on purpose; the published numbers move with it).
+constraints: $(STAMP)
+	$(PY) .ci/freeze_constraints.py > constraints.txt
+
 synthetic: $(STAMP)
 	$(VENV)/bin/corl bench synthetic --starts 100 --seed 0 --out results/synthetic
 
@@ -38,7 +58,7 @@ bench: $(STAMP)
 # API reference from the docstrings: one HTML page per module in docs/api (see docs/index.md).
 DOCS_STAMP := $(VENV)/.docs-installed
 $(DOCS_STAMP): $(STAMP) pyproject.toml
-	$(PY) -m pip install --quiet -e ".[docs]"
+	$(PY) -m pip install --quiet -c constraints.txt -e ".[docs]"
 	touch $(DOCS_STAMP)
 
 docs: $(DOCS_STAMP)
@@ -46,4 +66,4 @@ docs: $(DOCS_STAMP)
 	$(PY) docs/build_api.py docs/api
 
 clean:
-	rm -rf $(VENV) results build docs/api *.egg-info src/*.egg-info
+	rm -rf $(VENV) $(LOWEST) results build docs/api *.egg-info src/*.egg-info

@@ -154,15 +154,12 @@ class PandaSwitchTask:
 
     def method_settings(self):
         """GP length scales in metres of theta; the trust region in radians of w."""
-        from corl.experiments.methods import MethodSettings
-        from corl.learner import CORLConfig
-        from corl.optimizers.gpconfig import ClassifierConfig, RegressionConfig
+        from corl.settings import ClassifierConfig, CORLConfig, MethodSettings, RegressionConfig
 
         return MethodSettings(regression=RegressionConfig(lengthscale=0.04, signal_std=0.5, noise_std=0.01),
                               classifier=ClassifierConfig(lengthscale=0.02, signal_std=10.0, prior_mean=-7.0),
                               corl=CORLConfig(eps_max=0.3, eps_w=1e-4, max_rounds=4, max_optimization_steps=12,
-                                              max_rl_trials=25),
-                              rl_budget=25)
+                                              max_rl_trials=25))
 
     # -- analytic cost and projection (Eq. 6, 9) ------------------------------------------------
     def cost_residuals(self, w):

@@ -21,6 +21,7 @@ import math
 import numpy as np
 
 from corl.problem import Bounds, Demonstration, Outcome
+from corl.realise import project_demonstration
 from corl.trajectory.bspline import BSpline
 from corl.trajectory.features import TaskSpaceFeature, TrajectoryProblem, acceleration_feature, configuration_feature
 
@@ -70,14 +71,12 @@ class PlanarButtonTask:
         path = np.array([np.interp(times, [0.0, 0.6, T_CONTACT, DURATION],
                                    [self.q_start[j], 0.5 * (self.q_start[j] + q_touch[j]) + 0.3, q_touch[j], q_touch[j]])
                          for j in range(3)]).T
-        w0 = self.spline.fit(times, path)
-        return Demonstration(w0, self.theta_of(w0))
+        w0 = self.spline.fit(times, path)  # the fit misses the hold on the face by ~1.5 cm
+        return project_demonstration(self, Demonstration(w0, self.theta_of(w0)))[0]  # onto h(w, theta0) = 0
 
     def method_settings(self):
         """GP length scales in this task's units (theta spans 12 cm), and the trust region."""
-        from corl.experiments.methods import MethodSettings
-        from corl.learner import CORLConfig
-        from corl.optimizers.gpconfig import ClassifierConfig, RegressionConfig
+        from corl.settings import ClassifierConfig, CORLConfig, MethodSettings, RegressionConfig
 
         return MethodSettings(regression=RegressionConfig(lengthscale=0.015, signal_std=0.5, noise_std=0.01),
                               classifier=ClassifierConfig(lengthscale=0.01, signal_std=10.0, prior_mean=-7.0),

@@ -8,6 +8,7 @@ import pytest
 from corl.learner import CORL, CORLConfig, cost_of
 from corl.optimizers.base import BlackBoxOptimizer
 from corl.problem import Bounds, Demonstration, Outcome
+from corl.realise import project_demonstration
 from corl.trajectory.bspline import BSpline
 from corl.trajectory.features import TrajectoryProblem, acceleration_feature, configuration_feature
 
@@ -49,7 +50,8 @@ class WaypointTask:
         knots_t = np.concatenate([[0.0], self.contact_times, [1.0]])
         knots_q = np.vstack([[0.0, 0.0], self.points, self.points[-1]])
         q = np.stack([np.interp(t, knots_t, knots_q[:, j]) for j in range(2)], axis=1)
-        return Demonstration(self.spline.fit(t, q), np.array([0.0]))
+        fitted = Demonstration(self.spline.fit(t, q), np.array([0.0]))  # misses its points by ~0.02
+        return project_demonstration(self, fitted)[0]  # onto h = 0: CORL checks h(w0, theta0) ~ 0
 
     def cost_residuals(self, w):
         return self._cost.residuals(w)

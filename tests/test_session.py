@@ -74,7 +74,7 @@ def test_wrong_task_and_tell_without_pending(tmp_path):
 def test_second_writer_is_refused_and_store_unchanged(tmp_path):
     path = tmp_path / "s.corl"
     runner = CliRunner()
-    assert runner.invoke(app, ["ask", "--store", str(path), "--task", "synthetic"]).exit_code == 0
+    assert runner.invoke(app, ["ask", "--store", str(path), "--task", "synthetic", "--raw"]).exit_code == 0
     before = dump(path)
     holder = subprocess.Popen([sys.executable, "-c",
                                "import sys, time; from corl.store import RunStore; s = RunStore(sys.argv[1]); "
@@ -94,7 +94,7 @@ def test_second_writer_is_refused_and_store_unchanged(tmp_path):
 def test_cli_ask_tell_errors_leave_store_as_it_was(tmp_path):
     path = tmp_path / "s.corl"
     runner = CliRunner()
-    res = runner.invoke(app, ["ask", "--store", str(path), "--task", "synthetic", "--seed", "1"])
+    res = runner.invoke(app, ["ask", "--store", str(path), "--task", "synthetic", "--seed", "1", "--raw"])
     assert res.exit_code == 0, res.output
     asked = json.loads(res.output.strip().splitlines()[-1])
     assert Path(asked["csv"]).exists() and Path(asked["npz"]).exists()

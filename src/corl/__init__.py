@@ -14,7 +14,9 @@ The packages, from the lowest layer up:
   and the projection of Eq. 18;
 * :mod:`corl.gp`, :mod:`corl.acquisition`, :mod:`corl.optimizers`, :mod:`corl.policies`:
   Gaussian processes, PI / UCB / PIBU, the black-box methods, DMPs;
+* :mod:`corl.realise`: Eq. 18 with a task (realise a theta from ``w*``), the demonstration's check;
 * :mod:`corl.learner`, :mod:`corl.direct`, :mod:`corl.loop`: CORL and the methods over ``w``;
+* :mod:`corl.settings`: the settings a task gives (``MethodSettings`` and the configs);
 * :mod:`corl.tasks`: the synthetic benchmark and the simulated PR2 door;
 * :mod:`corl.store`, :mod:`corl.session`: the run store and resumable runs;
 * :mod:`corl.experiments`, :mod:`corl.progress`, :mod:`corl.cli`: benchmarks, reports and the

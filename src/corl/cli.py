@@ -199,6 +199,33 @@ def bench_door(
     typer.echo(f"\n{len(names)} methods x {seeds} seeds in {wall:.1f} s; wrote {out / 'door.json'} and {figure}")
 
 
+@app.command("sweep")
+def sweep(
+    task: str = typer.Argument(..., help="'synthetic', 'door', or an import path 'package.module:make_task'"),
+    grid: str = typer.Option(..., help="points per theta coordinate, e.g. 25,15 (one number: every coordinate)"),
+    out: Path = typer.Option(Path("results/sweep"), help="folder for sweep.csv, sweep.json and sweep.png"),
+    seed: int = typer.Option(0, help="seed the task factory gets (when it takes one)"),
+    jobs: int = typer.Option(1, help="parallel workers (-1: all cores)"),
+    backend: str = BACKEND, address: Optional[str] = ADDRESS,
+    quiet: bool = QUIET, json_out: bool = JSON_OUT, log: bool = LOG,
+) -> None:
+    """Ground truth of a simulated task: success and return over a theta grid, each theta realised
+    from the demonstration with Eq. 18 as the learner does it, then rolled out."""
+    from corl.errors import CorlError
+    from corl.experiments.sweep import sweep_command
+
+    try:
+        with _tracker(f"sweep {task}", quiet=quiet, log=log, json_out=json_out) as tracker:
+            payload = sweep_command(task, grid, out, seed=seed, jobs=jobs, backend=backend, address=address,
+                                    tracker=tracker)
+    except CorlError as exc:
+        _fail(str(exc))
+    if json_out:
+        return _print_json(payload)
+    typer.echo(f"{payload['successes']}/{payload['points']} grid points succeed ({payload['unrealised']} unrealisable); "
+               f"wrote {', '.join(v for k, v in payload['files'].items() if not k.endswith('_skipped'))}")
+
+
 def _open_store(path: Path, *, readonly: bool = False, create: bool = True):
     from corl.store import RunStore
 
@@ -217,6 +244,9 @@ def run(
     resume: bool = typer.Option(False, "--resume", help="continue the store's latest run exactly (or start one)"),
     quiet: bool = QUIET, json_out: bool = JSON_OUT, log: bool = LOG,
     video: bool = typer.Option(True, "--video/--no-video", help="render demonstration vs learned motion"),
+    rollout_every_step: Optional[bool] = typer.Option(
+        None, "--rollout-every-step/--no-rollout-every-step",
+        help="roll out every motion-optimization step (default: the task's CORLConfig), or only the converged one"),
 ) -> None:
     """One learning run, every trial committed to the store; writes OUT/summary.json, figures, video."""
     import time
@@ -247,7 +277,9 @@ def run(
                 typer.echo(f"--resume: {store_path} holds no run yet (killed before its first commit?); "
                            "starting one", err=True)
             if info is not None:
-                for flag, given, stored in (("--method", method, info.method), ("--seed", seed, info.seed)):
+                stored_every = info.config.get("corl_overrides", {}).get("rollout_every_step")
+                for flag, given, stored in (("--method", method, info.method), ("--seed", seed, info.seed),
+                                            ("--[no-]rollout-every-step", rollout_every_step, stored_every)):
                     if given is not None and given != stored:
                         _fail(f"{flag} {given} differs from the run being resumed ({stored}); drop the flag")
                 method, seed = info.method, int(info.seed or 0)
@@ -259,7 +291,9 @@ def run(
                 seed = 0 if seed is None else seed
                 if seed != task_seed:
                     the_task = load_task(task, seed=seed)
-                session = StoredRun.start(db, the_task, task_spec=task, method=method, seed=seed)
+                overrides = None if rollout_every_step is None else {"rollout_every_step": rollout_every_step}
+                session = StoredRun.start(db, the_task, task_spec=task, method=method, seed=seed,
+                                          corl_overrides=overrides)
         except CorlError as exc:
             _fail(str(exc))
 
@@ -309,6 +343,8 @@ def ask(
     seed: int = typer.Option(0, help="seed, used when the store has no run yet"),
     rate: float = typer.Option(100.0, help="rate of the written trajectory (Hz)"),
     out: Optional[Path] = typer.Option(None, help="folder for trial_<i>.csv/.npz (default: beside the store)"),
+    raw: bool = typer.Option(False, "--raw", help="for a task without reference(): write the raw parameters w "
+                                                 "(trial_<i>_raw_parameters.csv), NOT a joint trajectory"),
 ) -> None:
     """Write the next trial's trajectory (CSV and NPZ) and print its theta (real-robot loop)."""
     import numpy as np
@@ -331,6 +367,8 @@ def ask(
             info = db.latest_run()
             if info is not None and int(info.seed or 0) != task_seed:  # another process started a run meanwhile
                 the_task = load_task(task, seed=int(info.seed or 0))
+            if getattr(the_task, "reference", None) is None and not raw:  # corl.problem.HasReference
+                trajectory_of(the_task, np.zeros(1), rate)  # raises the message, before a trial is handed out
             if info is None:
                 session = StoredRun.start(db, the_task, task_spec=task, method=method, seed=seed)
             else:
@@ -338,6 +376,10 @@ def ask(
             if session.done:
                 _fail(f"run {session.run_id} has finished; 'corl status --store {store}' shows its result", code=1)
             proposal = session.ask()
+            if raw:
+                from corl.experiments.sweep import write_raw_parameters
+
+                return typer.echo(json.dumps(write_raw_parameters(proposal, out or store.parent)))
             t, q = trajectory_of(the_task, proposal.w, rate)
     except CorlError as exc:
         _fail(str(exc))

@@ -22,12 +22,23 @@ Decisions beyond the paper (see README):
 * The demonstration is rolled out once, as trial 0: D needs ``R(theta0)``, and a failing
   demonstration is reported at once (:class:`DemonstrationFailedError`).
 * A step-1 iterate that moved less than ``eps_w`` is not rolled out (it is the same policy).
-* A failed rollout in step 1 ends that step; ``w*`` stays at the last success.
+* A failed rollout in step 1 ends that step; ``w*`` stays at the last success, and the trust
+  region of every later step-1 step is halved (``eps_max / 2`` per failure). Eq. 8's trust region
+  exists because a step is "not guaranteed to lead to task success" (Sec. VI-A); a failure is the
+  evidence that steps of this size leave the success region here (success depends on the path, not
+  only on theta, against Sec. IV's assumption), so later rounds try a smaller step from the same
+  ``w*`` instead of the step that failed. A failure still ends the loop when the round made no
+  other progress ("until no change in (w*, theta*)").
+* A failed w is never proposed again: every w within ``eps_w`` of a failed trial's w is refused
+  (step 1 and phase steps stop before it; in step 2 the theta is told the recorded failure
+  without a rollout, ``info["known_failure"] = True``).
+* ``h(w0, theta0) ~ 0`` is checked when the learner is built, before anything is rolled out
+  (:func:`corl.realise.check_demonstration`, ``CORLConfig.demo_tolerance``).
 * With ``reuse_data`` (default), D keeps the step-2 data of earlier rounds: R and S depend on
   theta only (Sec. IV), so the data stays valid and a converged black-box step stops at once.
 * Eq. 18 may have no minimiser (the infimum can sit where h is singular); any feasible result
   realises theta and is executed, and an infeasible one is retried by continuation from theta*
-  (see ``_realise``). A theta whose projection stays infeasible is told to the black-box method as a failure
+  (:func:`corl.realise.realise`). A theta whose projection stays infeasible is told to the black-box method as a failure
   without a rollout (``info["unrealisable"] = True``) and counted in ``unrealisable``.
 """
 
@@ -40,10 +51,10 @@ import numpy as np
 
 from corl.errors import DemonstrationFailedError, InputError, StateError
 from corl.loop import drive
-from corl.numerics import as_vector
 from corl.optimizers.base import BlackBoxOptimizer, StopReason
-from corl.problem import Bounds, Outcome, Proposal, Task, check_theta
-from corl.trajectory.solver import FunctionProblem, SolverConfig, project, solve
+from corl.problem import Bounds, Outcome, Proposal, Task
+from corl.realise import check_demonstration, feasible, realise
+from corl.trajectory.solver import FunctionProblem, SolverConfig, solve
 
 __all__ = ["CORLConfig", "CORL", "Best", "OptimizerFactory", "cost_of"]
 
@@ -65,10 +76,11 @@ class CORLConfig:
     reuse_data: bool = True
     max_phase_steps: int = 0  # phase steps (Eq. 10) after the trajectory steps; needs task.spline
     solver: SolverConfig = field(default_factory=SolverConfig)
+    demo_tolerance: float = 1e-3  # the demonstration needs max|h(w0, theta0)| <= this, in h's units
 
     def __post_init__(self) -> None:
-        if min(self.eps_max, self.eps_w, self.eps_theta) <= 0:
-            raise InputError("eps_max, eps_w and eps_theta must be positive")
+        if min(self.eps_max, self.eps_w, self.eps_theta, self.demo_tolerance) <= 0:
+            raise InputError("eps_max, eps_w, eps_theta and demo_tolerance must be positive")
         if min(self.max_rounds, self.max_optimization_steps, self.max_rl_trials) < 1:
             raise InputError("max_rounds, max_optimization_steps and max_rl_trials must be >= 1")
 
@@ -124,10 +136,15 @@ class CORL:
         self.J_history: list[tuple[int, float]] = []  # (trial index, J(w)) of every rolled-out w
         self.unrealisable = 0
         self.rl_trials = 0  # black-box trials so far (the budget max_rl_trials counts these)
+        self.known_failures = 0  # step-2 thetas whose realisation had already failed: told, not rolled out
+        self.failed_w: list[np.ndarray] = []  # w of every failed trial: never proposed again
+        self.eps_max = config.eps_max  # current trust region of step 1, halved at each failed step
         self.rounds = 0
         self._end: StopReason | None = None
         self.optimizers: list[BlackBoxOptimizer] = []
         self._best: Best | None = None
+        # h(w0, theta0) ~ 0 is checked here, before anything can be rolled out
+        self._demonstration = check_demonstration(task, tolerance=config.demo_tolerance)
         self._pending: Proposal | None = None
         self._finished = False
         self._gen: Generator[Proposal, Outcome, None] = self._algorithm()
@@ -155,6 +172,8 @@ class CORL:
         proposal = self._pending
         self._pending = None
         self.history.append((proposal, outcome))
+        if not outcome.success:
+            self.failed_w.append(np.array(proposal.w, dtype=float))
         self.J_history.append((proposal.index, cost_of(self.task, proposal.w)))
         try:
             self._pending = self._gen.send(outcome)
@@ -191,14 +210,18 @@ class CORL:
 
     # -- Algorithm 1 ---------------------------------------------------------------------------
     def _proposal(self, w: np.ndarray, theta: np.ndarray, step: str) -> Proposal:
+        if self.failed_before(w):  # a guard: every step checks failed_before first
+            raise StateError(f"internal error: the learner was about to propose a w that already failed ({step})")
         return Proposal(index=len(self.history), w=w, theta=theta, step=step, round=self.rounds)
+
+    def failed_before(self, w: np.ndarray) -> bool:
+        """True when ``w`` (n,) is within ``eps_w`` of the w of a failed trial (the same policy)."""
+        w = np.asarray(w, dtype=float)
+        return any(np.linalg.norm(w - f) < self.config.eps_w for f in self.failed_w)
 
     def _algorithm(self) -> Iterator[Proposal]:
         task, cfg = self.task, self.config
-        bounds = task.theta_bounds
-        demo = task.demonstration()
-        w0 = as_vector(demo.w, name="demonstration w")
-        theta0 = check_theta(demo.theta, bounds, task=task.name)
+        w0, theta0 = self._demonstration.w, self._demonstration.theta  # checked in __init__
         outcome = yield self._proposal(w0, theta0, "demonstration")
         if not outcome.success:
             self._end = StopReason.NO_SAFE_POINT
@@ -236,14 +259,17 @@ class CORL:
         w_i = w_star
         for _ in range(cfg.max_optimization_steps):
             # Eq. 8: w(i+1) = argmin J(w) s.t. h(w, theta*) = 0, ||w - w(i)|| < eps_max
-            result = solve(problem, w_i, center=w_i, radius=cfg.eps_max, config=cfg.solver)
+            result = solve(problem, w_i, center=w_i, radius=self.eps_max, config=cfg.solver)
             w_next = result.w
             if np.linalg.norm(w_next - w_i) < cfg.eps_w:  # until ||w(i+1) - w(i)|| < eps_w
                 break
+            if cfg.rollout_every_step and self.failed_before(w_next):
+                break  # this very step failed before: never run it again
             w_i = w_next
             if cfg.rollout_every_step:
                 outcome = yield self._proposal(w_i, theta_star, "optimization")
-                if not outcome.success:  # do not walk further into failure
+                if not outcome.success:  # do not walk further into failure; later steps are smaller
+                    self.eps_max /= 2.0
                     return w_star, r_star
                 w_star, r_star = w_i, float(outcome.return_)  # set best w* if rollout successful
                 self._best = Best(w_star, theta_star, r_star, cost_of(task, w_star))
@@ -251,11 +277,15 @@ class CORL:
         if cfg.max_phase_steps > 0 and getattr(task, "spline", None) is not None:
             w_star, r_star, w_i = yield from self._phase(problem, w_star, r_star, w_i, theta_star)
         if not cfg.rollout_every_step and not np.array_equal(w_i, w_star):
+            if self.failed_before(w_i):
+                self.task = task_star
+                return w_star, r_star
             outcome = yield self._proposal(w_i, theta_star, "optimization")
             if outcome.success:
                 w_star, r_star = w_i, float(outcome.return_)
                 self._best = Best(w_star, theta_star, r_star, cost_of(task, w_star))
             else:
+                self.eps_max /= 2.0
                 self.task = task_star
         return w_star, r_star
 
@@ -285,10 +315,12 @@ class CORL:
                 task = task.retimed(lambda t, p=phase.p: np.interp(np.asarray(t) / T, p, grid))
                 problem = FunctionProblem(task.cost_residuals, lambda w, task=task: task.projection(w, theta_star))
             retimed = retime(task.spline, w_i, phase.p, equalities=problem)
-            if retimed.projection is not None and not self._feasible(retimed.projection):
+            if retimed.projection is not None and not feasible(retimed.projection, cfg.solver):
                 break
             w_next, J_next = retimed.w, cost_of(task, retimed.w)
             if J_next >= J_i or np.linalg.norm(w_next - w_i) < cfg.eps_w:
+                break
+            if cfg.rollout_every_step and self.failed_before(w_next):
                 break
             w_i, J_i = w_next, J_next
             if cfg.rollout_every_step:
@@ -299,48 +331,6 @@ class CORL:
                 self._best = Best(w_star, theta_star, r_star, J_i)
             self.task = task  # the re-timed contacts hold from here on
         return w_star, r_star, w_i
-
-    def _feasible(self, result) -> bool:
-        return bool(result.constraint_error <= 10.0 * self.config.solver.tol_constraint)
-
-    def _realise(self, w_star, theta_star, theta):
-        """Eq. 18: ``w = argmin ||w* - w||^2 s.t. h(w, theta) = 0``.
-
-        A feasible result realises theta even where the closest point is not attained (its
-        infimum can sit where h is singular). When the direct projection stays infeasible, theta
-        is reached by continuation from theta*: a chain of small projections, each anchored at
-        the previous one, which follows the constraint manifold instead of cutting across it.
-        """
-        cfg = self.config
-        result = self._project(theta, w_star)
-        if self._feasible(result):
-            return result
-        for pieces in (8, 64):
-            w = w_star
-            for k in range(1, pieces + 1):
-                step_theta = theta_star + (theta - theta_star) * (k / pieces)
-                result = self._project(step_theta, w)
-                if not self._feasible(result):
-                    break
-                w = result.w
-            else:
-                return result
-        return result
-
-    def _project(self, theta, anchor):
-        """Eq. 18 from ``anchor``; in the task's ``projection_metric`` L when it has one.
-
-        The paper's Euclidean distance ``||w - w*||`` moves only the few B-spline control points
-        around each constrained time, so the motion bends there and returns to its old path in
-        between. A task may give a sparse ``L`` (rows, n) and get the closest trajectory in
-        ``||L (w - w*)||`` instead (e.g. accelerations: a smooth deformation).
-        """
-        metric = getattr(self.task, "projection_metric", None)
-        if metric is None:
-            return project(self._constraint(theta), anchor, config=self.config.solver)
-        L = metric
-        problem = FunctionProblem(lambda w: (L @ (w - anchor), L), self._constraint(theta))
-        return solve(problem, anchor, config=self.config.solver)
 
     def _reinforcement(self, w_star, theta_star, r_star, data):
         task, cfg = self.task, self.config
@@ -355,10 +345,13 @@ class CORL:
         while self.rl_trials < cfg.max_rl_trials and not optimizer.done:
             theta = optimizer.ask()  # theta(d+1) = argmax_theta a(theta, D), decided when done was read
             self.rl_trials += 1
-            result = self._realise(w_star, theta_star, theta)
-            if not self._feasible(result):
+            result = realise(task, w_star, theta_star, theta, cfg.solver)  # Eq. 18
+            if not result.feasible:
                 self.unrealisable += 1
                 outcome = Outcome(False, None, {"unrealisable": True, "status": result.status})
+            elif self.failed_before(result.w):  # this trajectory failed already: its outcome is known
+                self.known_failures += 1
+                outcome = Outcome(False, None, {"known_failure": True})
             else:
                 outcome = yield self._proposal(result.w, theta, "reinforcement")
                 if outcome.success:

@@ -10,21 +10,27 @@ R(theta): black-box return (Eq. 3), higher is better
 S(theta): black-box success (Eq. 4), True or False
 
 A task is anything that has the attributes and methods of :class:`Task`. The synthetic benchmark
-and the door are two implementations; a user's own robot task plugs in the same way.
+and the door are two implementations; a user's own robot task plugs in the same way. Everything
+else corl reads from a task is an optional member declared below as a small protocol
+(:data:`OPTIONAL_MEMBERS`); corl picks up no other name. :func:`check_task` checks a task before
+any rollout.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Protocol, runtime_checkable
+from typing import Any, Mapping, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
 from corl.errors import InputError
 from corl.numerics import as_vector
 
-__all__ = ["Bounds", "Outcome", "Proposal", "Demonstration", "Task", "check_theta"]
+__all__ = ["Bounds", "Outcome", "Proposal", "Demonstration", "Task", "check_theta", "HasMethodSettings",
+           "HasProjectionMetric", "HasSpline", "Retimable", "HasPinnedTimes", "HasReference", "HasJointNames",
+           "HasThetaLabels", "RendersComparison", "REQUIRED_MEMBERS", "OPTIONAL_MEMBERS", "check_task",
+           "check_reference"]
 
 
 @dataclass(frozen=True)
@@ -118,7 +124,14 @@ class Outcome:
 
 @dataclass(frozen=True)
 class Demonstration:
-    """The initial policy ``(w0, theta0)`` of Alg. 1, assumed successful: ``S(theta0) = 1``."""
+    """The initial policy ``(w0, theta0)`` of Alg. 1, assumed successful: ``S(theta0) = 1``.
+
+    Attributes
+    ----------
+    w : (n,) the demonstration's trajectory parameters ``w0``.
+    theta : (m,) the interaction parameters it realises, ``h(w0, theta0) ~ 0`` (checked at the start
+        of a run: :func:`corl.realise.check_demonstration`; fix with :func:`corl.realise.project_demonstration`).
+    """
 
     w: np.ndarray
     theta: np.ndarray
@@ -155,11 +168,10 @@ class Task(Protocol):
     theta_bounds : the box ``theta`` is searched in, (m,) each.
     w_bounds : a box for methods that search ``w`` directly, or None.
 
-    Optional members the learner uses when present: ``method_settings()`` (hyperparameters in the
-    task's units), ``projection_metric`` (sparse ``L``: Eq. 18 in ``||L (w - w*)||``), ``spline``
-    (enables phase steps, Eq. 10), ``retimed(time_map)`` (a copy whose time-indexed constraints
-    hold at ``time_map(times)``: phase steps then move the contact instants) or ``pinned_times``
-    (times whose phase stays fixed), ``reference(w, rate)`` (the joint trajectory ``corl ask`` writes).
+    The optional members corl uses when present are the protocols below (:data:`OPTIONAL_MEMBERS`):
+    ``method_settings()``, ``projection_metric``, ``spline``, ``retimed(time_map)``,
+    ``pinned_times``, ``reference(w, rate)``, ``joint_names``, ``theta_labels``,
+    ``render_comparison(w_demo, w_learned, path)``.
     """
 
     name: str
@@ -167,7 +179,7 @@ class Task(Protocol):
     w_bounds: Bounds | None
 
     def demonstration(self) -> Demonstration:
-        """The initial successful policy ``(w0, theta0)``; ``h(w0, theta0)`` should be ~0."""
+        """The initial successful policy ``(w0, theta0)``; ``h(w0, theta0)`` must be ~0 (checked)."""
 
     def cost_residuals(self, w: np.ndarray) -> tuple[np.ndarray, Any]:
         """Residuals ``r (p,)`` and Jacobian ``dr/dw (p, n)`` (ndarray or scipy.sparse): ``J(w) = r @ r``."""
@@ -180,3 +192,147 @@ class Task(Protocol):
 
     def rollout(self, w: np.ndarray) -> Outcome:
         """Execute the policy with parameters ``w`` (n,) and report the black-box ``R`` and ``S``."""
+
+
+# -- optional members: each a small protocol, each read by one part of corl -----------------------
+@runtime_checkable
+class HasMethodSettings(Protocol):
+    """``method_settings()`` returns a :class:`corl.settings.MethodSettings`: GP hyperparameters in the
+    task's units, Algorithm 1's trust region, budgets (read by ``make_method``; default: the synthetic
+    benchmark's, which suit theta of size ~1)."""
+
+    def method_settings(self) -> Any: ...
+
+
+@runtime_checkable
+class HasProjectionMetric(Protocol):
+    """``projection_metric``: a sparse ``L`` (rows, n); Eq. 18 then minimises ``||L (w - w*)||`` instead
+    of ``||w - w*||`` (:func:`corl.realise.realise`), e.g. accelerations for a smooth deformation."""
+
+    projection_metric: Any
+
+
+@runtime_checkable
+class HasSpline(Protocol):
+    """``spline``: the :class:`corl.trajectory.BSpline` behind ``w``; enables phase steps (Eq. 10) when
+    ``CORLConfig.max_phase_steps > 0``."""
+
+    spline: Any
+
+
+@runtime_checkable
+class Retimable(Protocol):
+    """``retimed(time_map)``: a copy of the task whose time-indexed constraints hold at
+    ``time_map(times)``; phase steps then move the contact instants with the phase."""
+
+    def retimed(self, time_map) -> "Task": ...
+
+
+@runtime_checkable
+class HasPinnedTimes(Protocol):
+    """``pinned_times``: times (s) whose phase a phase step keeps (for a task without ``retimed``)."""
+
+    pinned_times: Sequence[float]
+
+
+@runtime_checkable
+class HasReference(Protocol):
+    """``reference(w, rate)``: the joint trajectory a robot follows for ``w`` (``corl ask`` writes it).
+
+    Contract: returns ``(t, q)``, times ``t`` (K,) in seconds from 0, increasing, sampled at ``rate``
+    Hz (``t[1] - t[0] == 1 / rate``), and joint positions ``q`` (K, Q), one column per joint
+    (``joint_names`` names them). :func:`check_reference` enforces it.
+    """
+
+    def reference(self, w: np.ndarray, rate: float) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+@runtime_checkable
+class HasJointNames(Protocol):
+    """``joint_names``: Q names, the columns of ``reference``'s ``q`` (the CSV header of ``corl ask``)."""
+
+    joint_names: Sequence[str]
+
+
+@runtime_checkable
+class HasThetaLabels(Protocol):
+    """``theta_labels``: m axis labels of theta for the return map and the report."""
+
+    theta_labels: Sequence[str]
+
+
+@runtime_checkable
+class RendersComparison(Protocol):
+    """``render_comparison(w_demo, w_learned, path)``: a video of both motions side by side, written to
+    ``path`` (a ``.mp4``); returns the path written (``corl run`` and ``corl report``)."""
+
+    def render_comparison(self, w_demo: np.ndarray, w_learned: np.ndarray, path) -> Any: ...
+
+
+REQUIRED_MEMBERS = {"name": False, "theta_bounds": False, "w_bounds": False, "demonstration": True,
+                    "cost_residuals": True, "projection": True, "theta_of": True, "rollout": True}  # name: callable?
+OPTIONAL_MEMBERS = {"method_settings": (HasMethodSettings, True), "projection_metric": (HasProjectionMetric, False),
+                    "spline": (HasSpline, False), "retimed": (Retimable, True),
+                    "pinned_times": (HasPinnedTimes, False), "reference": (HasReference, True),
+                    "joint_names": (HasJointNames, False), "theta_labels": (HasThetaLabels, False),
+                    "render_comparison": (RendersComparison, True)}
+
+
+def check_task(task, source: str = "the task") -> Task:
+    """Check the members of a task before any rollout; one :class:`InputError` naming what is wrong.
+
+    Required members must exist (methods callable, ``theta_bounds`` a :class:`Bounds`); optional
+    members, where present, must have the right kind (a method callable, ``joint_names`` and
+    ``theta_labels`` sequences of strings of the right length).
+    """
+    where = f"{source} ({type(task).__name__})"
+    missing = [a for a in REQUIRED_MEMBERS if not hasattr(task, a)]
+    if missing:
+        raise InputError(f"{where} is not a task: it lacks {', '.join(missing)}; "
+                         "add them (see corl.problem.Task and the README's task protocol)")
+    for member, is_method in REQUIRED_MEMBERS.items():
+        if is_method and not callable(getattr(task, member)):
+            raise InputError(f"{where}: '{member}' must be a method (see corl.problem.Task)")
+    if not isinstance(task.theta_bounds, Bounds):
+        raise InputError(f"{where}: theta_bounds must be a corl.problem.Bounds, got {type(task.theta_bounds).__name__}")
+    if task.w_bounds is not None and not isinstance(task.w_bounds, Bounds):
+        raise InputError(f"{where}: w_bounds must be a corl.problem.Bounds or None, got {type(task.w_bounds).__name__}")
+    for member, (_, is_method) in OPTIONAL_MEMBERS.items():
+        value = getattr(task, member, None)
+        if value is not None and is_method and not callable(value):
+            raise InputError(f"{where}: the optional member '{member}' must be a method or absent "
+                             f"(see corl.problem.{OPTIONAL_MEMBERS[member][0].__name__})")
+    for member, size in (("theta_labels", task.theta_bounds.dim), ("joint_names", None)):
+        value = getattr(task, member, None)
+        if value is None:
+            continue
+        if isinstance(value, str) or not all(isinstance(v, str) for v in value):
+            raise InputError(f"{where}: '{member}' must be a sequence of strings, got {value!r}")
+        if size is not None and len(value) != size:
+            raise InputError(f"{where}: '{member}' has {len(value)} entries, theta has {size}; give one per coordinate")
+    return task
+
+
+def check_reference(task, t, q, rate: float) -> tuple[np.ndarray, np.ndarray]:
+    """Check what ``task.reference(w, rate)`` returned against its contract (:class:`HasReference`).
+
+    Returns ``t`` (K,) and ``q`` (K, Q) as float arrays; raises :class:`InputError` naming the member.
+    """
+    t = np.asarray(t, dtype=float)
+    q = np.asarray(q, dtype=float)
+    what = f"task '{getattr(task, 'name', '?')}': reference(w, rate)"
+    if t.ndim != 1 or q.ndim != 2 or q.shape[0] != t.shape[0] or t.shape[0] < 1:
+        raise InputError(f"{what} returned t {t.shape} and q {q.shape}; it must return times (K,) and joint "
+                         "positions (K, Q), one row per time (see corl.problem.HasReference)")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(q))):
+        raise InputError(f"{what} returned NaN or infinite values")
+    if t.shape[0] > 1:
+        dt = np.diff(t)
+        if not np.allclose(dt, 1.0 / rate, rtol=1e-6, atol=1e-9):
+            raise InputError(f"{what} ignored the rate: time steps {dt.min():.6g}..{dt.max():.6g} s, expected "
+                             f"1/{rate:g} Hz = {1.0 / rate:.6g} s (see corl.problem.HasReference)")
+    names = getattr(task, "joint_names", None)
+    if names is not None and len(names) != q.shape[1]:
+        raise InputError(f"{what} returned {q.shape[1]} joints but joint_names has {len(names)}; "
+                         "give one name per column of q")
+    return t, q

@@ -30,10 +30,18 @@ from corl.store import RunStatus, RunStore, StoreError, replay
 __all__ = ["StoredRun", "trajectory_of", "check_rate", "MAX_RATE_HZ"]
 
 
-def _build(task: Task, method: str, seed: int):
-    from corl.experiments.methods import make_method
+def _build(task: Task, method: str, seed: int, corl_overrides: dict | None = None):
+    """The learner; ``corl_overrides`` replace fields of the task's CORLConfig (``--rollout-every-step``)."""
+    from dataclasses import replace
 
-    return make_method(method, task, seed=seed)
+    from corl.experiments.methods import make_method
+    from corl.settings import MethodSettings
+
+    if not corl_overrides:
+        return make_method(method, task, seed=seed)
+    preset = getattr(task, "method_settings", None)  # corl.problem.HasMethodSettings
+    settings = preset() if callable(preset) else MethodSettings()
+    return make_method(method, task, seed=seed, settings=replace(settings, corl=replace(settings.corl, **corl_overrides)))
 
 
 class StoredRun:
@@ -46,10 +54,17 @@ class StoredRun:
 
     # -- creating and reopening ----------------------------------------------------------------
     @classmethod
-    def start(cls, store: RunStore, task: Task, *, task_spec: str, method: str, seed: int) -> "StoredRun":
-        """A new run of ``method`` on ``task`` (``task_spec`` is how the command line named it)."""
-        learner = _build(task, method, seed)
+    def start(cls, store: RunStore, task: Task, *, task_spec: str, method: str, seed: int,
+              corl_overrides: dict | None = None) -> "StoredRun":
+        """A new run of ``method`` on ``task`` (``task_spec`` is how the command line named it).
+
+        ``corl_overrides`` (e.g. ``{"rollout_every_step": False}``) replace fields of the task's
+        CORLConfig; they are stored with the run and applied again when it is reopened.
+        """
+        learner = _build(task, method, seed, corl_overrides)
         config = {"task_spec": task_spec, "task_name": task.name}
+        if corl_overrides:
+            config["corl_overrides"] = dict(corl_overrides)
         cfg = getattr(learner, "config", None)
         if cfg is not None:
             config["learner"] = _plain(asdict(cfg))
@@ -65,7 +80,8 @@ class StoredRun:
         if info.task != task.name:
             raise InputError(f"run {info.id} in {store.path} is for task '{info.task}', but the task given is "
                              f"'{task.name}'; name the same task as when the run was started")
-        learner = _build(task, info.method, 0 if info.seed is None else int(info.seed))
+        learner = _build(task, info.method, 0 if info.seed is None else int(info.seed),
+                         info.config.get("corl_overrides"))
         replay(learner, store, info.id)
         return cls(learner, store, info.id)
 
@@ -141,17 +157,22 @@ def check_rate(rate: float) -> float:
 
 
 def trajectory_of(task: Task, w: np.ndarray, rate: float) -> tuple[np.ndarray, np.ndarray]:
-    """Times (K,) and joint positions (K, Q) a robot should follow for ``w``.
+    """Times (K,) and joint positions (K, Q) a robot should follow for ``w``: ``task.reference(w, rate)``.
 
-    Tasks with a reference trajectory provide ``task.reference(w, rate)``; for others the
-    parameters themselves are the "trajectory" (one row at time 0).
+    Raises :class:`InputError` for a task without ``reference`` (its parameters are no joint
+    trajectory: ``corl ask --raw`` writes them, labelled as such) or a ``reference`` that breaks
+    its contract (:class:`corl.problem.HasReference`).
     """
+    from corl.problem import check_reference
+
     check_rate(rate)
-    reference = getattr(task, "reference", None)
+    reference = getattr(task, "reference", None)  # corl.problem.HasReference
     if reference is None:
-        return np.zeros(1), np.asarray(w, dtype=float)[None, :]
+        raise InputError(f"task '{task.name}' has no reference(w, rate), so corl cannot turn w into a joint "
+                         "trajectory; add reference() to the task (see corl.problem.HasReference), or pass --raw "
+                         "to write the raw parameters w (not a joint trajectory: never send them to a robot)")
     t, q = reference(w, rate)
-    return np.asarray(t, dtype=float), np.asarray(q, dtype=float)
+    return check_reference(task, t, q, rate)
 
 
 def _plain(obj):

@@ -83,6 +83,8 @@ def test_sqp_with_active_trust_region_satisfies_kkt_and_matches_slsqp(reaching):
         method="SLSQP",
         options={"ftol": 1e-14, "maxiter": 500},
     )
+    if not reference.success and _scipy_before("1.16"):  # SLSQP was rewritten in 1.16; the KKT check above holds
+        pytest.skip(f"scipy's SLSQP before 1.16 stops early here ({reference.message}): no reference to compare")
     # SLSQP's line search may stop with "positive directional derivative" once its ftol = 1e-14 is
     # below what the machine's rounding allows (it does with OpenBLAS's Sandybridge kernel); the
     # point it reached is then still the reference, provided it is feasible to the same tolerance.
@@ -179,3 +181,9 @@ def test_iterations_do_not_grow_with_the_number_of_knots(arm):
         iterations[P], costs[P] = result.iterations, result.cost
     assert iterations[1500] <= 2 * iterations[150], iterations
     assert costs[1500] == pytest.approx(10 * costs[150], rel=0.01)  # J ~ P at fixed geometry (K = 2 P)
+
+
+def _scipy_before(version: str) -> bool:
+    import scipy
+
+    return tuple(int(p) for p in scipy.__version__.split(".")[:2]) < tuple(int(p) for p in version.split("."))

@@ -40,6 +40,7 @@ import json
 import math
 import time
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 from typing import Callable
 
@@ -124,31 +125,15 @@ class SafeRegion:
                          np.ptp(self.theta2) / max(len(self.theta2) - 1, 1)])
 
 
-def _realise_and_roll_out(settings: dict, anchor: np.ndarray, thetas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Realise every theta (k, 2) from ``anchor`` as the learner does (Eq. 18) and roll it out."""
-    from corl.learner import CORL
-
-    task = _door_task(settings)
-    learner = CORL(task, lambda *_: None, task.method_settings().corl)
-    theta_anchor = np.asarray(task.demonstration().theta, dtype=float)
-    success = np.zeros(len(thetas), dtype=bool)
-    realised = np.zeros(len(thetas), dtype=bool)
-    for k, theta in enumerate(thetas):
-        result = learner._realise(anchor, theta_anchor, theta)
-        realised[k] = learner._feasible(result)
-        if realised[k]:
-            success[k] = task.rollout(result.w).success
-    return success, realised
-
-
 def safe_region(task, n1: int = 25, n2: int = 15, *, anchor: np.ndarray | None = None,
                 cache: str | Path | None = None, jobs: int = 2, backend: str = "loky",
                 address: str | None = None, progress: Progress | None = None) -> SafeRegion:
     """The safe region over theta from a dense sweep (about 0.4 s per grid point).
 
     Each theta of an ``n1 x n2`` grid over ``task.theta_bounds`` is realised from ``anchor`` with
-    Eq. 18, exactly as the learner does it (``CORL._realise``: the task's projection metric,
-    continuation when the direct projection is infeasible), rolled out, and its success recorded.
+    Eq. 18, exactly as the learner does it (:func:`corl.realise.realise`: the task's projection
+    metric, continuation when the direct projection is infeasible), rolled out, and its success
+    recorded: :func:`corl.experiments.sweep.sweep_task`, the code behind ``corl sweep``.
 
     Parameters
     ----------
@@ -160,9 +145,7 @@ def safe_region(task, n1: int = 25, n2: int = 15, *, anchor: np.ndarray | None =
     jobs, backend, address : workers and where they run (:func:`corl.experiments.backends.cluster`).
     progress : ``(stage, done, total, note)``, called as chunks of the grid finish.
     """
-    from joblib import effective_n_jobs
-
-    from corl.experiments.backends import cluster, run_unordered
+    from corl.experiments.sweep import sweep_task
     from corl.versions import library_versions
 
     if n1 < 2 or n2 < 2:
@@ -180,21 +163,15 @@ def safe_region(task, n1: int = 25, n2: int = 15, *, anchor: np.ndarray | None =
         with np.load(path) as f:
             return SafeRegion(f["theta1"], f["theta2"], f["success"], f["realised"], key)
 
-    T1, T2 = np.meshgrid(theta1, theta2, indexing="ij")
-    points = np.column_stack([T1.ravel(), T2.ravel()])
-    success = np.zeros(len(points), dtype=bool)
-    realised = np.zeros(len(points), dtype=bool)
-    done = 0
-    with cluster(backend, jobs, address):  # inside door_sweep: its cluster, already running
-        n_chunks = min(len(points), 4 * max(1, effective_n_jobs(jobs)))
-        chunks = [np.arange(j, len(points), n_chunks) for j in range(n_chunks)]  # interleaved: even work
-        arguments = [(settings, anchor, points[idx]) for idx in chunks]
-        for k, (s, r) in run_unordered(_realise_and_roll_out, arguments, jobs=jobs, backend=backend):
-            success[chunks[k]], realised[chunks[k]] = s, r  # filed by grid index: any finishing order
-            done += len(chunks[k])
-            if progress is not None:
-                progress("safe region", done, len(points), f"{int(success.sum())} safe so far")
-    region = SafeRegion(theta1, theta2, success.reshape(n1, n2), realised.reshape(n1, n2), key)
+    def tick(done: int, total: int, safe: int) -> None:
+        if progress is not None:
+            progress("safe region", done, total, f"{safe} safe so far")
+
+    theta_anchor = np.asarray(task.demonstration().theta, dtype=float)  # step 1 keeps theta: w* realises theta0
+    grid = sweep_task(partial(_door_task, settings), (n1, n2), anchor=anchor, theta_anchor=theta_anchor,
+                      jobs=jobs, backend=backend, address=address, progress=tick)
+    success, realised = grid.success, grid.realised
+    region = SafeRegion(theta1, theta2, success, realised, key)
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(path.stem + ".tmp.npz")

@@ -13,17 +13,16 @@ demonstration or the start theta* as one trial of a budget of 100 or 50.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import Callable
 
 import numpy as np
 
 from corl.direct import DirectSearch
 from corl.errors import InputError
-from corl.learner import CORL, CORLConfig
-from corl.optimizers.gpconfig import SYNTHETIC_CLASSIFIER, SYNTHETIC_REGRESSION, ClassifierConfig, RegressionConfig
-from corl.optimizers.registry import OPTIMIZERS, OptimizerSettings
+from corl.learner import CORL
+from corl.optimizers.registry import OPTIMIZERS
 from corl.problem import Task
+from corl.settings import MethodSettings  # re-exported: defined below the tasks
 
 __all__ = ["MethodSettings", "METHODS", "PAPER_FIG1", "make_method"]
 
@@ -38,35 +37,6 @@ PAPER_FIG1 = {  # found/100, failures mean, std, max distance mean, std
     "CORL+SAL": (99, 1.74, 0.56, 0.06, 0.11),
 }
 METHODS = tuple(PAPER_FIG1) + ("CORL+PIBU(literal)",)
-
-
-@dataclass(frozen=True)
-class MethodSettings:
-    """Everything a method needs besides the task; the defaults are the synthetic benchmark's."""
-
-    regression: RegressionConfig = SYNTHETIC_REGRESSION
-    classifier: ClassifierConfig = SYNTHETIC_CLASSIFIER
-    corl: CORLConfig = field(default_factory=lambda: CORLConfig(max_rl_trials=49))  # the budget of CORL
-    direct_budget: int = 99  # trials of a method over w, the demonstration included
-    failure_return: float = -15.0
-    ucb_kappa: float = 2.0
-    cma_sigma0: float = 0.3
-    # Per-dimension unit of theta distances in the stopping rules (None: theta's own units). A
-    # task whose length scales are stretched per dimension (ARD) gives the same stretch here, so
-    # that "near a sampled point" means the same thing along every axis.
-    theta_scale: tuple[float, ...] | None = None
-
-    def __post_init__(self) -> None:
-        if isinstance(self.direct_budget, bool) or int(self.direct_budget) != self.direct_budget or self.direct_budget < 2:
-            raise InputError(f"direct_budget (trials of a method over w, the demonstration included) must be an "
-                             f"integer >= 2, got {self.direct_budget!r}")
-
-    def optimizer_settings(self) -> OptimizerSettings:
-        """The black-box methods' settings (:mod:`corl.optimizers.registry`) in the task's units."""
-        return OptimizerSettings(regression=self.regression, classifier=self.classifier,
-                                 failure_return=self.failure_return, ucb_kappa=self.ucb_kappa,
-                                 cma_sigma0=self.cma_sigma0, stop_distance=1e-3, step_distance=self.corl.eps_theta,
-                                 distance_scale=self.theta_scale)
 
 
 _UNCOUNTED = 2**62  # CORL counts its black-box trials itself; the optimizer inside never stops on a budget
@@ -87,8 +57,11 @@ def make_method(name: str, task: Task, *, seed: int = 0, settings: MethodSetting
     hyperparameters from Sec. VIII-B) or, for tasks without them, the synthetic benchmark's.
     """
     if settings is None:
-        preset = getattr(task, "method_settings", None)
+        preset = getattr(task, "method_settings", None)  # corl.problem.HasMethodSettings
         settings = preset() if callable(preset) else MethodSettings()
+        if not isinstance(settings, MethodSettings):
+            raise InputError(f"task '{task.name}': method_settings() returned {type(settings).__name__}; "
+                             "it must return a corl.settings.MethodSettings")
     if name.startswith("CORL+"):
         inner = _factory(name[len("CORL+"):], settings)
         return CORL(task, lambda b, x0, rng: inner(b, x0, rng, _UNCOUNTED), settings.corl, seed=seed)

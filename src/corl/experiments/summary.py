@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 __all__ = ["run_summary", "task_extras", "run_text"]
 
 
@@ -28,16 +30,29 @@ def run_summary(task, method: str, seed: int, learner, seconds: float) -> dict:
 
 
 def task_extras(task, learner) -> dict:
-    """Door-style extras: the demonstration's J and return, the final return and door angle."""
-    if not hasattr(task, "simulate") or not learner.history:
+    """The demonstration's J and return, the final return, and the numbers the best trial measured.
+
+    Read from the learner's history only (no task member is called): ``final_info`` holds the
+    numeric entries of the best trial's ``Outcome.info`` (the door's ``hinge_final``, ...). For
+    the door, ``door_angle_final`` repeats ``hinge_final`` (rad) under its old name.
+    """
+    if not learner.history:
         return {}
     from corl.learner import cost_of
 
     demo_p, demo_o = learner.history[0]
     best = learner.best
-    final = task.simulate(best.w)
-    return {"J_demo": cost_of(task, demo_p.w), "return_demo": demo_o.return_,
-            "return_final": best.return_, "door_angle_final": float(final.hinge_final)}
+    extras = {"J_demo": cost_of(task, demo_p.w), "return_demo": demo_o.return_,
+              "return_final": None if best is None else best.return_}
+    if best is None:
+        return extras
+    info = next((dict(o.info) for p, o in reversed(learner.history) if o.success and np.array_equal(p.w, best.w)), {})
+    numbers = {k: float(v) for k, v in info.items()
+               if isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)}
+    extras["final_info"] = numbers
+    if "hinge_final" in numbers:
+        extras["door_angle_final"] = numbers["hinge_final"]
+    return extras
 
 
 def run_text(summary: dict, path: str | Path) -> str:

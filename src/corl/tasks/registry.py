@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import importlib
+import inspect
 import os
 import sys
 
 import numpy as np
 
-from corl.errors import InputError
-from corl.problem import Task
+from corl.errors import CorlError, InputError
+from corl.problem import Task, check_task
 
 __all__ = ["load_task", "check_task_spec", "BUILTIN_TASKS"]
 
@@ -17,8 +18,10 @@ BUILTIN_TASKS = ("synthetic", "door")
 
 
 def load_task(spec: str, *, seed: int = 0) -> Task:
-    """Build a task: a built-in name, or ``package.module:factory`` (called with no arguments).
+    """Build a task: a built-in name, or ``package.module:factory``.
 
+    The factory is called with ``seed=seed`` when its signature takes a ``seed`` (``corl run --seed``),
+    else with no arguments; the task it gives is checked (:func:`corl.problem.check_task`).
     The spec comes from the command line only, never from a store: importing it runs its code.
     Every failure (a malformed spec, an import or a factory that raises) is an :class:`InputError`.
     """
@@ -46,18 +49,24 @@ def load_task(spec: str, *, seed: int = 0) -> Task:
     factory = getattr(module, attr, None)
     if factory is None:
         raise InputError(f"module '{module_name}' has no attribute '{attr}'")
+    task = _call_factory(spec, factory, seed) if callable(factory) and not isinstance(factory, Task) else factory
+    return check_task(task, f"'{spec}'")
+
+
+def _call_factory(spec: str, factory, seed: int):
+    """``factory(seed=seed)`` when its signature takes ``seed`` (or ``**kwargs``), else ``factory()``."""
     try:
-        task = factory() if callable(factory) and not isinstance(factory, Task) else factory
+        parameters = inspect.signature(factory).parameters.values()
+    except (TypeError, ValueError):  # a builtin or C callable: no signature to read
+        parameters = ()
+    takes_seed = any(p.name == "seed" or p.kind is p.VAR_KEYWORD for p in parameters)
+    try:
+        return factory(seed=seed) if takes_seed else factory()
+    except CorlError:
+        raise
     except Exception as exc:
         raise InputError(f"the task factory '{spec}' raised {type(exc).__name__}: {exc}; fix the factory "
-                         "(it is called with no arguments)") from None
-    missing = [a for a in ("name", "theta_bounds", "w_bounds", "demonstration", "cost_residuals",
-                           "projection", "theta_of", "rollout") if not hasattr(task, a)]
-    if missing:
-        raise InputError(f"'{spec}' did not give a task: it lacks {', '.join(missing)} (see corl.problem.Task)")
-    if not isinstance(task.name, str) or not task.name:
-        raise InputError(f"'{spec}' gave a task whose name is {task.name!r}; a task's name is a non-empty string")
-    return task
+                         f"(call it in Python to see the traceback)") from None
 
 
 def _split_spec(spec: str) -> tuple[str, str]:

@@ -57,12 +57,11 @@ def test_h_matches_where_the_fingers_touch_the_handle(task):
 
 
 def test_eq18_realises_a_new_theta_and_keeps_the_grasp(task):
-    from corl.learner import CORL
+    from corl.realise import realise
 
     demo = task.demonstration()
-    learner = CORL(task, lambda b, x0, rng: None)
     theta = np.array([0.05, 0.016])
-    result = learner._realise(demo.w, demo.theta, theta)
+    result = realise(task, demo.w, demo.theta, theta)
     assert result.constraint_error < 1e-5
     np.testing.assert_allclose(task.theta_of(result.w), theta, atol=1e-3)
     out = task.rollout(result.w)

@@ -170,9 +170,7 @@ class DoorTask:
 
     def method_settings(self):
         """The paper's hyperparameters for the door (Sec. VIII-B)."""
-        from corl.experiments.methods import MethodSettings
-        from corl.learner import CORLConfig
-        from corl.optimizers.gpconfig import DOOR_CLASSIFIER, DOOR_REGRESSION
+        from corl.settings import DOOR_CLASSIFIER, DOOR_REGRESSION, CORLConfig, MethodSettings
 
         corl = CORLConfig(eps_max=EPS_MAX, eps_w=1e-5, eps_theta=0.003, max_rounds=6,
                           max_optimization_steps=60, max_rl_trials=60, max_phase_steps=20)

@@ -1,0 +1,288 @@
+"""The ground truth of a simulated task over theta: success region and return on a grid (``corl sweep``).
+
+Every theta of a grid over ``task.theta_bounds`` is realised from an anchor trajectory exactly as
+the learner does it (Eq. 18, :func:`corl.realise.realise`: the task's projection metric, the
+continuation, the solver settings of the task's CORLConfig), rolled out, and its S and R recorded.
+The door benchmark's safe region (Fig. 3's "max distance") is this sweep from the run's ``w*``.
+
+Glossary
+--------
+grid      : points per theta coordinate, (m,) ints; the grid is their Cartesian product (row-major)
+anchor    : (n,) the trajectory thetas are realised from (default the demonstration's ``w0``)
+success   : grid-shaped bool, the realised theta succeeded; realised : Eq. 18 found a feasible w
+returns   : grid-shaped float, R of the rollout (NaN where it failed or was not rolled out)
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from corl.errors import InputError
+
+__all__ = ["Sweep", "TaskSpec", "parse_grid", "evaluate_points", "sweep_task", "write_sweep", "sweep_command",
+           "write_raw_parameters"]
+
+Progress = Callable[[int, int, int], None]  # (points done, total, successes so far)
+
+_BUILT: dict[tuple, object] = {}  # one task per worker process and spec (a MuJoCo scene loads once)
+
+
+@dataclass(frozen=True)
+class TaskSpec:
+    """A picklable task builder for workers: ``corl run``'s task argument and seed (built once per process)."""
+
+    spec: str
+    seed: int = 0
+
+    def __call__(self):
+        key = (self.spec, self.seed)
+        if key not in _BUILT:
+            from corl.tasks.registry import load_task
+
+            _BUILT[key] = load_task(self.spec, seed=self.seed)
+        return _BUILT[key]
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """Success and return of a grid over theta.
+
+    Attributes
+    ----------
+    axes : m arrays, the grid of each theta coordinate.
+    success, realised : bool arrays of shape ``grid``; returns : float array of shape ``grid``.
+    anchor_theta : (m,) the theta the anchor realises.
+    """
+
+    axes: tuple[np.ndarray, ...]
+    success: np.ndarray
+    realised: np.ndarray
+    returns: np.ndarray
+    anchor_theta: np.ndarray
+
+    @property
+    def points(self) -> np.ndarray:
+        """(N, m) every grid point, row-major like ``success.ravel()``."""
+        mesh = np.meshgrid(*self.axes, indexing="ij")
+        return np.column_stack([g.ravel() for g in mesh])
+
+    @property
+    def safe_points(self) -> np.ndarray:
+        """(k, m) the successful grid points."""
+        return self.points[self.success.ravel()]
+
+
+def parse_grid(text: str, dim: int) -> tuple[int, ...]:
+    """``"25,15"`` or ``"25x15"`` (or one number for every coordinate) -> points per coordinate."""
+    parts = [p for p in text.lower().replace("x", ",").split(",") if p.strip()]
+    try:
+        sizes = tuple(int(p) for p in parts)
+    except ValueError:
+        raise InputError(f"--grid must be points per theta coordinate like 25,15, got {text!r}") from None
+    if len(sizes) == 1:
+        sizes = sizes * dim
+    if len(sizes) != dim:
+        raise InputError(f"--grid {text!r} gives {len(sizes)} sizes, but theta has {dim} coordinates")
+    if min(sizes) < 2:
+        raise InputError(f"--grid needs at least 2 points per coordinate, got {text!r}")
+    return sizes
+
+
+def _solver(task):
+    """The solver settings the learner would use on ``task`` (its CORLConfig's)."""
+    from corl.settings import CORLConfig
+
+    preset = getattr(task, "method_settings", None)  # corl.problem.HasMethodSettings
+    corl = preset().corl if callable(preset) else CORLConfig()
+    return corl.solver
+
+
+def evaluate_points(task, anchor, theta_anchor, thetas) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Realise every theta (k, m) from ``anchor`` (n,) with Eq. 18 and roll it out.
+
+    Returns success (k,), realised (k,) and returns (k,) (NaN without a successful rollout).
+    """
+    from corl.realise import realise
+
+    solver = _solver(task)
+    thetas = np.asarray(thetas, dtype=float).reshape(-1, task.theta_bounds.dim)
+    success = np.zeros(len(thetas), dtype=bool)
+    realised = np.zeros(len(thetas), dtype=bool)
+    returns = np.full(len(thetas), np.nan)
+    for k, theta in enumerate(thetas):
+        result = realise(task, anchor, theta_anchor, theta, solver)
+        realised[k] = result.feasible
+        if result.feasible:
+            outcome = task.rollout(result.w)
+            success[k] = outcome.success
+            if outcome.success:
+                returns[k] = float(outcome.return_)
+    return success, realised, returns
+
+
+def _chunk(make_task, anchor, theta_anchor, thetas):
+    return evaluate_points(make_task(), anchor, theta_anchor, thetas)
+
+
+def sweep_task(make_task: Callable[[], object], grid, *, anchor=None, theta_anchor=None, jobs: int = 1,
+               backend: str = "loky", address: str | None = None, progress: Progress | None = None) -> Sweep:
+    """Success and return of every theta of ``grid`` over the task's bounds.
+
+    Parameters
+    ----------
+    make_task : a picklable callable that builds the task (:class:`TaskSpec`, or a module-level
+        function / ``functools.partial``); workers build their own copy.
+    grid : points per theta coordinate, (m,) ints (:func:`parse_grid`).
+    anchor, theta_anchor : (n,) and (m,) the trajectory thetas are realised from and the theta it
+        realises; default the demonstration's ``(w0, theta0)``.
+    jobs, backend, address : parallel workers and where they run (:mod:`corl.experiments.backends`);
+        ``jobs=1`` runs in this process.
+    progress : ``(done, total, successes)`` as chunks finish.
+    """
+    from joblib import effective_n_jobs
+
+    from corl.experiments.backends import check_backend, cluster, run_unordered
+
+    task = make_task()
+    bounds = task.theta_bounds
+    grid = tuple(int(g) for g in grid)
+    if len(grid) != bounds.dim or min(grid) < 2:
+        raise InputError(f"the grid needs at least 2 points in each of theta's {bounds.dim} coordinates, got {grid}")
+    if anchor is None or theta_anchor is None:
+        demo = task.demonstration()
+        anchor = demo.w if anchor is None else anchor
+        theta_anchor = demo.theta if theta_anchor is None else theta_anchor
+    anchor = np.asarray(anchor, dtype=float)
+    theta_anchor = np.asarray(theta_anchor, dtype=float).reshape(bounds.dim)
+    axes = tuple(np.linspace(lo, hi, g) for lo, hi, g in zip(bounds.lower, bounds.upper, grid))
+    mesh = np.meshgrid(*axes, indexing="ij")
+    points = np.column_stack([g.ravel() for g in mesh])
+    success = np.zeros(len(points), dtype=bool)
+    realised = np.zeros(len(points), dtype=bool)
+    returns = np.full(len(points), np.nan)
+    if jobs == 1 and backend == "loky":
+        success[:], realised[:], returns[:] = evaluate_points(task, anchor, theta_anchor, points)
+        if progress is not None:
+            progress(len(points), len(points), int(success.sum()))
+    else:
+        check_backend(backend, address)
+        done = 0
+        with cluster(backend, jobs, address):
+            n_chunks = min(len(points), 4 * max(1, effective_n_jobs(jobs)))
+            chunks = [np.arange(j, len(points), n_chunks) for j in range(n_chunks)]  # interleaved: even work
+            arguments = [(make_task, anchor, theta_anchor, points[idx]) for idx in chunks]
+            for k, (s, r, R) in run_unordered(_chunk, arguments, jobs=jobs, backend=backend):
+                success[chunks[k]], realised[chunks[k]], returns[chunks[k]] = s, r, R  # by grid index
+                done += len(chunks[k])
+                if progress is not None:
+                    progress(done, len(points), int(success.sum()))
+    return Sweep(axes, success.reshape(grid), realised.reshape(grid), returns.reshape(grid), theta_anchor)
+
+
+def write_sweep(sweep: Sweep, out: str | Path, *, labels=None, title: str = "") -> dict[str, str]:
+    """``sweep.csv`` (one row per grid point), ``sweep.json`` and, for m <= 2, ``sweep.png`` (the map).
+
+    Returns {kind: path}; the map of a theta with more than 2 coordinates is skipped (``png_skipped``).
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    m = len(sweep.axes)
+    labels = tuple(labels) if labels is not None and len(labels) == m else tuple(f"theta{k + 1}" for k in range(m))
+    points = sweep.points
+    with open(out / "sweep.csv", "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow([f"theta{k + 1}" for k in range(m)] + ["realised", "success", "return"])
+        for p, r, s, R in zip(points, sweep.realised.ravel(), sweep.success.ravel(), sweep.returns.ravel()):
+            writer.writerow([f"{v:.10g}" for v in p] + [int(r), int(s), "" if np.isnan(R) else f"{R:.10g}"])
+    best = None
+    if sweep.success.any():
+        k = int(np.nanargmax(np.where(sweep.success.ravel(), sweep.returns.ravel(), np.nan)))
+        best = {"theta": points[k].tolist(), "return": float(sweep.returns.ravel()[k])}
+    payload = {"labels": list(labels), "grid": list(sweep.success.shape), "axes": [a.tolist() for a in sweep.axes],
+               "anchor_theta": sweep.anchor_theta.tolist(), "points": int(points.shape[0]),
+               "successes": int(sweep.success.sum()), "unrealised": int((~sweep.realised).sum()), "best": best,
+               "csv": str(out / "sweep.csv")}
+    (out / "sweep.json").write_text(json.dumps(payload, indent=2) + "\n")
+    files = {"csv": str(out / "sweep.csv"), "json": str(out / "sweep.json")}
+    if m > 2:
+        files["png_skipped"] = f"no map for a theta with {m} coordinates (the CSV has every point)"
+        return files
+    files["png"] = str(_plot(sweep, out / "sweep.png", labels, title))
+    return files
+
+
+def _plot(sweep: Sweep, path: Path, labels, title: str) -> Path:
+    from corl.experiments.figures import _pyplot, _save
+
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6.0, 4.5))
+    R = np.where(sweep.success, sweep.returns, np.nan)
+    if len(sweep.axes) == 1:
+        x = sweep.axes[0]
+        ax.plot(x, R, "o-", color="C0", label="R (successful rollouts)")
+        fails = ~sweep.success
+        ax.plot(x[fails], np.full(fails.sum(), np.nanmin(R) if np.isfinite(R).any() else 0.0), "x", color="C3",
+                label="failure")
+        ax.axvline(sweep.anchor_theta[0], color="k", ls="--", lw=1, label="anchor")
+        ax.set_xlabel(labels[0])
+        ax.set_ylabel("R")
+        ax.legend(loc="best", fontsize=8)
+    else:
+        t1, t2 = sweep.axes
+        image = ax.pcolormesh(t1, t2, R.T, shading="nearest", cmap="viridis")
+        fig.colorbar(image, ax=ax, label="R (successful rollouts)")
+        P = sweep.points
+        fail = ~sweep.success.ravel()
+        ax.plot(P[fail, 0], P[fail, 1], "x", color="C3", ms=4, label="failure")
+        ax.plot(*sweep.anchor_theta, "k*", ms=10, label="anchor")
+        ax.set_xlabel(labels[0])
+        ax.set_ylabel(labels[1])
+        ax.legend(loc="best", fontsize=8)
+    ax.set_title(title or f"success region and return: {int(sweep.success.sum())}/{sweep.success.size} succeed")
+    return _save(plt, fig, path)
+
+
+def sweep_command(task: str, grid: str, out, *, seed: int = 0, jobs: int = 1, backend: str = "loky",
+                  address: str | None = None, tracker=None) -> dict:
+    """``corl sweep``: build the task, sweep the grid from the demonstration, write the files; the JSON payload."""
+    import math
+
+    spec = TaskSpec(task, seed)
+    the_task = spec()
+    sizes = parse_grid(grid, the_task.theta_bounds.dim)
+    def progress(done, total, ok):
+        if tracker is not None:
+            tracker.update("grid", done=done, total=total, note=f"{ok} succeed")
+
+    if tracker is not None:
+        tracker.add_stage("grid", total=math.prod(sizes))
+    result = sweep_task(spec, sizes, jobs=jobs, backend=backend, address=address, progress=progress)
+    files = write_sweep(result, out, labels=getattr(the_task, "theta_labels", None), title=the_task.name)
+    return {"task": the_task.name, "grid": list(sizes), "points": int(result.success.size),
+            "successes": int(result.success.sum()), "unrealised": int((~result.realised).sum()),
+            "best": json.loads(Path(files["json"]).read_text())["best"], "files": files}
+
+
+def write_raw_parameters(proposal, folder) -> dict:
+    """``corl ask --raw``: the parameters w as one labelled row, never mistaken for joint positions.
+
+    Writes ``trial_<i>_raw_parameters.csv`` (a comment line saying what it is, then ``w0..w{n-1}``)
+    and ``.npz``; returns what ``corl ask`` prints.
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    stem = folder / f"trial_{proposal.index:04d}_raw_parameters"
+    np.savez(stem.with_suffix(".npz"), w=proposal.w, theta=proposal.theta, raw_parameters=True)
+    header = ("# raw parameters w of the policy, not a joint trajectory: never send them to a robot\n"
+              + ",".join(f"w{j}" for j in range(proposal.w.shape[0])))
+    np.savetxt(stem.with_suffix(".csv"), np.asarray(proposal.w, dtype=float)[None, :], delimiter=",",
+               header=header, comments="")
+    return {"trial": proposal.index, "step": proposal.step, "round": proposal.round,
+            "theta": proposal.theta.tolist(), "raw_parameters": True,
+            "csv": str(stem.with_suffix(".csv")), "npz": str(stem.with_suffix(".npz"))}
