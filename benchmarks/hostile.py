@@ -99,7 +99,7 @@ def _reader_cmds(store: str) -> dict[str, list[str]]:
         "runs": ["runs", "--store", store],
         "export": ["export", "--store", store, "--out", "t.csv"],
         "report": ["report", "--store", store, "--out", "rep", "--no-video", "--task", "synthetic"],
-        "ask": ["ask", "--store", store, "--task", "synthetic"],
+        "ask": ["ask", "--store", store, "--task", "synthetic", "--raw"],
         "tell": ["tell", "--store", store, "--task", "synthetic", "--success", "yes", "--return", "0.1"],
         "run --resume": ["run", "synthetic", "--store", store, "--resume", "--out", "o", "--no-video", "-q"],
     }
@@ -182,10 +182,10 @@ def prepare(folder: Path) -> None:
     (folder / "usertask.py").write_text(USERTASK)
     (folder / "afile.txt").write_text("a file, not a folder\n")
     (folder / "sub").mkdir()
-    corl("ask", "--store", "demo.corl", "--task", "synthetic", "--out", "trials")
+    corl("ask", "--store", "demo.corl", "--task", "synthetic", "--out", "trials", "--raw")
     shutil.copy(folder / "demo.corl", folder / "s.corl")
     corl("tell", "--store", "s.corl", "--task", "synthetic", "--success", "yes", "--return", "0.2")
-    corl("ask", "--store", "s.corl", "--task", "synthetic", "--out", "trials")
+    corl("ask", "--store", "s.corl", "--task", "synthetic", "--out", "trials", "--raw")
 
 
 def _damage(store: Path, damage: str) -> None:

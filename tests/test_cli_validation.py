@@ -58,7 +58,7 @@ def listing(folder):
 
 def asked_store(folder):
     """A store whose demonstration (trial 0) is pending, as `corl ask` leaves it."""
-    res = runner.invoke(app, ["ask", "--store", str(folder / "s.corl"), "--task", "synthetic"])
+    res = runner.invoke(app, ["ask", "--store", str(folder / "s.corl"), "--task", "synthetic", "--raw"])
     assert res.exit_code == 0, res.output
     return folder / "s.corl"
 
@@ -81,7 +81,7 @@ BAD_RUNS = [
     (["run", "..:x"], "is not an import path"),
     (["run", "usertask:"], "is not an import path"),
     (["run", "usertask:boom"], "raised RuntimeError: the factory broke"),
-    (["run", "usertask:not_a_task"], "did not give a task"),
+    (["run", "usertask:not_a_task"], "is not a task: it lacks"),
     (["run", "nosuchmodule:make"], "cannot import"),
     (["run", "usertask:make", "--out", "afile.txt"], "is a file"),
     (["run", "usertask:make", "--store", "."], "is a folder"),

@@ -201,7 +201,7 @@ def test_read_only_media_are_read(tmp_path, at_rest):
             res = runner.invoke(app, args)
             assert res.exit_code == 0, (args, res.output)
         assert rows(store) == expected
-        res = runner.invoke(app, ["ask", "--store", str(store), "--task", "synthetic"])
+        res = runner.invoke(app, ["ask", "--store", str(store), "--task", "synthetic", "--raw"])
         assert res.exit_code == 2 and "cannot open store" in res.output
     assert (out / "t.csv").read_text().count("\n") == 5
     assert (out / "rep" / "run_1.html").is_file()
@@ -228,7 +228,7 @@ def test_damaged_fields_give_one_line(tmp_path, sql):
     for args in (["status", "--store", str(store)], ["runs", "--store", str(store)],
                  ["export", "--store", str(store), "--out", str(tmp_path / "t.csv")],
                  ["report", "--store", str(store), "--out", str(tmp_path / "rep"), "--quiet"],
-                 ["ask", "--store", str(store), "--task", "synthetic"]):
+                 ["ask", "--store", str(store), "--task", "synthetic", "--raw"]):
         res = runner.invoke(app, args)
         if res.exit_code == 0:  # `runs` reads no trials: a damaged trial does not concern it
             assert args[0] == "runs" and "trial" in sql, res.output
