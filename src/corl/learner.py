@@ -53,8 +53,8 @@ from corl.errors import DemonstrationFailedError, InputError, StateError
 from corl.loop import drive
 from corl.optimizers.base import BlackBoxOptimizer, StopReason
 from corl.problem import Bounds, Outcome, Proposal, Task
-from corl.realise import check_demonstration, feasible, realise
-from corl.trajectory.solver import FunctionProblem, SolverConfig, solve
+from corl.realise import check_demonstration, feasible, motion_problem, realise
+from corl.trajectory.solver import SolverConfig, solve
 
 __all__ = ["CORLConfig", "CORL", "Best", "OptimizerFactory", "cost_of"]
 
@@ -249,13 +249,9 @@ class CORL:
         else:
             self._end = StopReason.MAX_ROUNDS
 
-    def _constraint(self, theta: np.ndarray):
-        task = self.task
-        return lambda w: task.projection(w, theta)
-
     def _optimization(self, w_star, theta_star, r_star):
         task, cfg = self.task, self.config
-        problem = FunctionProblem(task.cost_residuals, self._constraint(theta_star))
+        problem = motion_problem(task, theta_star)  # the task's banded problem (SQP) when it gives one
         w_i = w_star
         for _ in range(cfg.max_optimization_steps):
             # Eq. 8: w(i+1) = argmin J(w) s.t. h(w, theta*) = 0, ||w - w(i)|| < eps_max
@@ -313,7 +309,7 @@ class CORL:
                 grid = np.linspace(0.0, task.spline.duration, phase.p.shape[0])
                 T = task.spline.duration
                 task = task.retimed(lambda t, p=phase.p: np.interp(np.asarray(t) / T, p, grid))
-                problem = FunctionProblem(task.cost_residuals, lambda w, task=task: task.projection(w, theta_star))
+                problem = motion_problem(task, theta_star)
             retimed = retime(task.spline, w_i, phase.p, equalities=problem)
             if retimed.projection is not None and not feasible(retimed.projection, cfg.solver):
                 break

@@ -28,7 +28,7 @@ from corl.errors import InputError
 from corl.numerics import as_vector
 
 __all__ = ["Bounds", "Outcome", "Proposal", "Demonstration", "Task", "check_theta", "HasMethodSettings",
-           "HasProjectionMetric", "HasSpline", "Retimable", "HasPinnedTimes", "HasReference", "HasJointNames",
+           "HasProjectionMetric", "HasTrajectoryProblem", "HasSpline", "Retimable", "HasPinnedTimes", "HasReference", "HasJointNames",
            "HasThetaLabels", "RendersComparison", "REQUIRED_MEMBERS", "OPTIONAL_MEMBERS", "check_task",
            "check_reference"]
 
@@ -169,7 +169,7 @@ class Task(Protocol):
     w_bounds : a box for methods that search ``w`` directly, or None.
 
     The optional members corl uses when present are the protocols below (:data:`OPTIONAL_MEMBERS`):
-    ``method_settings()``, ``projection_metric``, ``spline``, ``retimed(time_map)``,
+    ``method_settings()``, ``trajectory_problem(theta)``, ``projection_metric``, ``spline``, ``retimed(time_map)``,
     ``pinned_times``, ``reference(w, rate)``, ``joint_names``, ``theta_labels``,
     ``render_comparison(w_demo, w_learned, path)``.
     """
@@ -210,6 +210,23 @@ class HasProjectionMetric(Protocol):
     of ``||w - w*||`` (:func:`corl.realise.realise`), e.g. accelerations for a smooth deformation."""
 
     projection_metric: Any
+
+
+@runtime_checkable
+class HasTrajectoryProblem(Protocol):
+    """``trajectory_problem(theta)``: the motion problem of Eq. 8 at ``theta`` (m,) as a
+    :class:`corl.trajectory.TrajectoryProblem` built from features: its residuals are the task's
+    ``cost_residuals`` (J, Eq. 7) and its equalities the task's h (``projection(w, theta)``, Eq. 6).
+
+    A task that gives it opts in to the banded SQP solver (:mod:`corl.trajectory.solver.sqp`):
+    Alg. 1's step 1 (Eq. 8), the phase steps and Eq. 18 (:func:`corl.realise.realise`, with the
+    cost swapped for the distance to ``w*`` by :meth:`~corl.trajectory.TrajectoryProblem.with_costs`)
+    then run Newton-KKT steps on the banded Hessian of a linear cost (acceleration features). Without
+    it, or when the cost is not linear, the augmented Lagrangian solves the same problems from
+    ``cost_residuals`` and ``projection``. Cache the problem per theta: the learner asks once per
+    optimization round and once per Eq. 18."""
+
+    def trajectory_problem(self, theta: np.ndarray) -> Any: ...
 
 
 @runtime_checkable
@@ -271,7 +288,8 @@ class RendersComparison(Protocol):
 
 REQUIRED_MEMBERS = {"name": False, "theta_bounds": False, "w_bounds": False, "demonstration": True,
                     "cost_residuals": True, "projection": True, "theta_of": True, "rollout": True}  # name: callable?
-OPTIONAL_MEMBERS = {"method_settings": (HasMethodSettings, True), "projection_metric": (HasProjectionMetric, False),
+OPTIONAL_MEMBERS = {"method_settings": (HasMethodSettings, True),
+                    "trajectory_problem": (HasTrajectoryProblem, True), "projection_metric": (HasProjectionMetric, False),
                     "spline": (HasSpline, False), "retimed": (Retimable, True),
                     "pinned_times": (HasPinnedTimes, False), "reference": (HasReference, True),
                     "joint_names": (HasJointNames, False), "theta_labels": (HasThetaLabels, False),

@@ -30,9 +30,9 @@ import numpy as np
 from corl.errors import InputError
 from corl.numerics import as_vector
 from corl.problem import Demonstration, Task, check_theta
-from corl.trajectory.solver import FunctionProblem, SolveResult, SolverConfig, project, solve
+from corl.trajectory.solver import FunctionProblem, LeastSquaresProblem, SolveResult, SolverConfig, project
 
-__all__ = ["FEASIBILITY_FACTOR", "DEMONSTRATION_TOLERANCE", "Realisation", "realise", "project_theta", "feasible",
+__all__ = ["FEASIBILITY_FACTOR", "DEMONSTRATION_TOLERANCE", "Realisation", "realise", "project_theta", "motion_problem", "feasible",
            "constraint_violation", "check_demonstration", "project_demonstration"]
 
 FEASIBILITY_FACTOR = 10.0  # a realisation is feasible when max|h| <= this x SolverConfig.tol_constraint
@@ -69,8 +69,22 @@ def feasible(result: SolveResult, solver: SolverConfig = SolverConfig()) -> bool
     return bool(result.constraint_error <= FEASIBILITY_FACTOR * solver.tol_constraint)
 
 
-def _constraint(task: Task, theta: np.ndarray):
-    return lambda w: task.projection(w, theta)
+def motion_problem(task: Task, theta) -> LeastSquaresProblem:
+    """The task's motion problem at ``theta`` (m,): ``J`` (Eq. 7) under ``h(., theta) = 0`` (Eq. 6).
+
+    The task's own structured problem when it gives one (``trajectory_problem``,
+    :class:`corl.problem.HasTrajectoryProblem`: the banded SQP path of the solver), else the two
+    callables ``cost_residuals`` and ``projection`` (the augmented Lagrangian).
+    """
+    theta = np.asarray(theta, dtype=float)
+    structured = getattr(task, "trajectory_problem", None)  # corl.problem.HasTrajectoryProblem
+    if structured is None:
+        return FunctionProblem(task.cost_residuals, lambda w: task.projection(w, theta))
+    problem = structured(theta)
+    if not isinstance(problem, LeastSquaresProblem):
+        raise InputError(f"task '{task.name}': trajectory_problem(theta) returned {type(problem).__name__}; it must "
+                         "return a corl.trajectory.TrajectoryProblem (residuals J, equalities h(., theta))")
+    return problem
 
 
 def project_theta(task: Task, theta, anchor, solver: SolverConfig = SolverConfig()) -> SolveResult:
@@ -79,16 +93,12 @@ def project_theta(task: Task, theta, anchor, solver: SolverConfig = SolverConfig
     The paper's Euclidean distance ``||w - w*||`` moves only the few B-spline control points around
     each constrained time, so the motion bends there and returns to its old path in between. A task
     with a ``projection_metric`` (sparse ``L``, (rows, n)) gets the closest trajectory in
-    ``||L (w - w*)||`` instead (e.g. accelerations: a smooth deformation).
+    ``||L (w - w*)||`` instead (e.g. accelerations: a smooth deformation). The solve itself is
+    :func:`corl.trajectory.solver.project` on :func:`motion_problem` (SQP for a structured task).
     """
-    theta = np.asarray(theta, dtype=float)
     anchor = as_vector(anchor, name="anchor w")
     metric = getattr(task, "projection_metric", None)  # corl.problem.HasProjectionMetric
-    if metric is None:
-        return project(_constraint(task, theta), anchor, config=solver)
-    L = metric
-    problem = FunctionProblem(lambda w: (L @ (w - anchor), L), _constraint(task, theta))
-    return solve(problem, anchor, config=solver)
+    return project(motion_problem(task, theta), anchor, metric=metric, config=solver)
 
 
 def realise(task: Task, w_star, theta_star, theta, solver: SolverConfig = SolverConfig()) -> Realisation:

@@ -41,7 +41,7 @@ def _grad(problem, w):
 
 
 def test_method_setting_is_validated_and_the_presets_choose():
-    assert SolverConfig().method is SolverMethod.AUGMENTED_LAGRANGIAN
+    assert SolverConfig().method is SolverMethod.SQP  # SQP where the problem is banded, AL elsewhere
     assert SolverConfig.trajectory().method is SolverMethod.SQP
     assert SolverConfig(method="sqp").method is SolverMethod.SQP
     with pytest.raises(InputError, match="method must be"):

@@ -31,6 +31,7 @@ h, Jh     : stacked equalities (q,) and their sparse Jacobian (q, n)
 
 from __future__ import annotations
 
+import copy
 import math
 from typing import Protocol, Sequence, runtime_checkable
 
@@ -81,10 +82,17 @@ class LinearFeature:
         if self.b.shape != (self.A.shape[0],):
             raise InputError(f"{name}: b has shape {self.b.shape}, expected ({self.A.shape[0]},)")
         self.name = name
+        self._gram: BandedSPD | None = None
 
     @property
     def dim(self) -> int:
         return self.A.shape[0]
+
+    def gram(self) -> BandedSPD:
+        """``2 A^T A`` (n, n) in band storage, computed once per feature (the Hessian of ``||A w - b||^2``)."""
+        if self._gram is None:
+            self._gram = BandedSPD.from_sparse(2.0 * (self.A.T @ self.A).tocsr())
+        return self._gram
 
     def __call__(self, w: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
         return self.A @ w - self.b, self.A
@@ -253,6 +261,8 @@ class TrajectoryProblem:
         other = tuple(f for f in features if not getattr(f, "linear", False))
         if not linear:
             return None, other
+        if len(linear) == 1 and type(linear[0]) is LinearFeature:  # shared as it is (and its cached gram)
+            return linear[0], other
         A = stack_csr([f.A for f in linear], self.n)
         return LinearFeature(A, np.concatenate([f.b for f in linear]), name=f"{what}s"), other
 
@@ -325,6 +335,27 @@ class TrajectoryProblem:
             G[np.ix_(at, at)] += block
         return SupportGram(support, G, self.n)
 
+    def with_costs(self, costs: Sequence) -> TrajectoryProblem:
+        """The same equalities under other cost features (e.g. Eq. 18's ``||L (w - w*)||^2``).
+
+        The equality features, and the layout of their Jacobian on its support, are shared with
+        this problem (nothing is rebuilt); only the cost is new.
+        """
+        if not costs:
+            raise InputError("TrajectoryProblem needs at least one cost feature (Eq. 7)")
+        other = copy.copy(self)
+        other._cost_linear, other._cost_other = self._split(costs, "cost")
+        other._affine = None
+        return other
+
+    def distance_problem(self, w_star: np.ndarray, metric=None) -> TrajectoryProblem:
+        """Eq. 18 under these equalities: the cost ``||L (w - w*)||^2``, ``L`` the sparse ``metric``
+        (rows, n) or the identity; w_star: (n,). Linear, so the SQP solver takes it on its banded path."""
+        L = sp.identity(self.n, format="csr") if metric is None else sp.csr_matrix(metric, dtype=float)
+        if L.shape[1] != self.n:
+            raise InputError(f"the metric of Eq. 18 has shape {L.shape}, expected (rows, {self.n})")
+        return self.with_costs([LinearFeature(L, L @ np.asarray(w_star, dtype=float), name="distance to w* (Eq. 18)")])
+
     def cost(self, w: np.ndarray) -> float:
         """``J(w) = r^T r`` (Eq. 7)."""
         r, _ = self.residuals(w)
@@ -340,7 +371,7 @@ class TrajectoryProblem:
             return None
         if self._affine is None:
             A, b = self._cost_linear.A, self._cost_linear.b
-            H = BandedSPD.from_sparse(2.0 * (A.T @ A).tocsr())
+            H = self._cost_linear.gram()
             c = 2.0 * (A.T @ b)
             if not (np.all(np.isfinite(H.ab)) and np.all(np.isfinite(c))):
                 raise NumericalError("the linear cost features contain NaN or inf")

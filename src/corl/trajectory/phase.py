@@ -300,7 +300,7 @@ def retime(spline: BSpline, w, p, *, equalities=None, config: PhaseConfig = Phas
     fn = getattr(equalities, "equalities", equalities)
     h_before = float(np.abs(fn(np.asarray(w, dtype=float))[0]).max(initial=0.0))
     h_fit = float(np.abs(fn(w_fit)[0]).max(initial=0.0))
-    projection = project(fn, w_fit, config=SolverConfig.trajectory())
+    projection = project(equalities, w_fit, config=SolverConfig.trajectory())  # SQP for a TrajectoryProblem
     return RetimeResult(projection.w, w_fit, fit_error, h_before, h_fit, projection.constraint_error, projection)
 
 

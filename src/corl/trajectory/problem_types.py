@@ -128,8 +128,11 @@ class SolverConfig:
         ``inner_rtol`` times their first accepted step (0 for exact solves); the final solve is always tight.
     damping_init : first Levenberg-Marquardt damping, relative to the largest diagonal entry of H.
     damping_max : relative damping at which no decrease of L_A is possible any more (stall).
-    method : :class:`SolverMethod` (or its value ``"al"`` / ``"sqp"``); the augmented Lagrangian
-        by default, SQP in the :meth:`trajectory` preset. The penalty settings (``mu_*``,
+    method : :class:`SolverMethod` (or its value ``"al"`` / ``"sqp"``); SQP by default, which
+        runs only on problems with a banded affine cost and equalities (a
+        :class:`~corl.trajectory.features.TrajectoryProblem` of linear cost features, e.g. a
+        task's ``trajectory_problem``) and leaves every other problem to the augmented Lagrangian;
+        ``"al"`` forces the augmented Lagrangian everywhere. The penalty settings (``mu_*``,
         ``violation_decrease``, ``inner_rtol``, ``max_outer_iterations``) and the damping apply
         to the augmented Lagrangian only (and to it when SQP hands over).
     """
@@ -145,7 +148,7 @@ class SolverConfig:
     inner_rtol: float = 1e-2
     damping_init: float = 1e-12
     damping_max: float = 1e12
-    method: SolverMethod = SolverMethod.AUGMENTED_LAGRANGIAN
+    method: SolverMethod = SolverMethod.SQP
 
     def __post_init__(self) -> None:
         if type(self.method) is not SolverMethod:

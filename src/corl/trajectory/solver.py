@@ -469,16 +469,22 @@ def _result(pt: _Point, run: _Run, lam: np.ndarray, mu: float, converged: bool, 
     )
 
 
-def project(equalities, w_star, *, w_init=None, config: SolverConfig = DEFAULT_CONFIG) -> SolveResult:
-    """Closest point to ``w_star`` that satisfies the constraints (Eq. 18).
+def project(equalities, w_star, *, w_init=None, metric=None, config: SolverConfig = DEFAULT_CONFIG) -> SolveResult:
+    """Closest point to ``w_star`` that satisfies the constraints: the machinery of Eq. 18.
 
-    ``argmin_w ||w - w*||^2  s.t.  h(w) = 0``; Alg. 1, step 2 uses it to turn a new theta into a
-    trajectory near the last optimum ``w*``.
+    ``argmin_w ||L (w - w*)||^2  s.t.  h(w) = 0`` with ``L`` the ``metric`` or the identity. The
+    public Eq. 18 for a task and a theta is :func:`corl.realise.realise`, which calls this; use
+    this function directly only for an ``h`` that belongs to no task (a demonstration's fit, a
+    re-timed path, tests).
 
-    It first follows the manifold ``h = 0`` (:mod:`corl.trajectory.projection`: min-norm
-    restoration and tangent steps, superlinear where the augmented Lagrangian is only linear);
-    when that gives up - a singular ``dh/dw``, a failed restoration, no descent - it falls back on
-    :func:`solve` with residuals ``w - w*`` from the same start.
+    * A structured problem (one with ``distance_problem(w_star, metric)``, e.g. a
+      :class:`~corl.trajectory.features.TrajectoryProblem`) under ``method="sqp"`` is solved by
+      :func:`solve` on its banded SQP path (the distance is a linear cost).
+    * Otherwise, in the identity metric, it follows the manifold ``h = 0``
+      (:mod:`corl.trajectory.projection`: min-norm restoration and tangent steps, superlinear
+      where the augmented Lagrangian is only linear).
+    * Where those give up - a singular ``dh/dw``, a failed restoration, no descent - or with a
+      metric and no structure, :func:`solve` on the residuals ``L (w - w*)`` from the same start.
 
     Parameters
     ----------
@@ -486,13 +492,14 @@ def project(equalities, w_star, *, w_init=None, config: SolverConfig = DEFAULT_C
         ``equalities`` method (a :class:`LeastSquaresProblem`).
     w_star : (n,) point to project.
     w_init : (n,) start; default ``w_star``.
+    metric : sparse or dense ``L`` (rows, n), or None for the Euclidean distance.
     config : see :class:`SolverConfig`.
 
     Returns
     -------
     SolveResult
-        ``cost`` is ``||w - w*||^2``. In the fallback, the residual Jacobian is a sparse identity
-        when ``dh/dw`` is sparse, a dense one otherwise.
+        ``cost`` is ``||L (w - w*)||^2``. In the fallback, the residual Jacobian is a sparse
+        identity when ``dh/dw`` is sparse, a dense one otherwise.
     """
     if type(config) is not SolverConfig and not isinstance(config, SolverConfig):
         raise InputError(f"config must be a SolverConfig, got {type(config).__name__}")
@@ -502,6 +509,17 @@ def project(equalities, w_star, *, w_init=None, config: SolverConfig = DEFAULT_C
         raise InputError(f"equalities must be a callable w -> (h, dh/dw) or a problem, got {equalities!r}")
     start = w_star if w_init is None else as_vector(w_init, w_star.shape[0], name="w_init")
     n = w_star.shape[0]
+    spent = 0  # evaluations of attempts that gave up
+    structured = getattr(equalities, "distance_problem", None)
+    if structured is not None and config.method is SolverMethod.SQP:
+        result = solve(structured(w_star, metric), start, config=config)
+        if result.converged:
+            return result
+        spent = result.evaluations
+    if metric is not None:
+        L = metric
+        result = solve(FunctionProblem(lambda w: (L @ (w - w_star), L), fn), start, config=config)
+        return replace(result, evaluations=result.evaluations + spent)
     calls = [0]
 
     def evaluate(w: np.ndarray) -> tuple[np.ndarray, Jacobian, float]:
@@ -521,7 +539,7 @@ def project(equalities, w_star, *, w_init=None, config: SolverConfig = DEFAULT_C
     )
     if found is None or found.error > config.tol_constraint:
         result = solve(_ProjectionProblem(fn, w_star), start, config=config)
-        return replace(result, evaluations=result.evaluations + calls[0])  # count the attempt too
+        return replace(result, evaluations=result.evaluations + calls[0] + spent)  # count the attempts too
     history = tuple(IterationRecord(k - 1, 0, cost, err, step, 0.0, 0.0, w) for k, cost, err, step, w in found.history)
     return SolveResult(
         w=found.w,

@@ -91,7 +91,8 @@ class DoorTask:
         self.t_contact = float(self.demo.t_contact)
         self.spline = BSpline(num_control_points, 8, duration=self.duration)
         self.num_steps = int(num_steps)
-        self._cost = TrajectoryProblem(self.spline.n, costs=[acceleration_feature(self.spline, self.num_steps)])
+        self._acceleration = acceleration_feature(self.spline, self.num_steps)
+        self._cost = TrajectoryProblem(self.spline.n, costs=[self._acceleration])
         self._constraints: dict[bytes, TrajectoryProblem] = {}
         # Eq. 6 over the whole interaction: the approach above the bar, the pre-grasp, the closing,
         # pressing and pulling; every waypoint after the start moves with theta
@@ -138,11 +139,15 @@ class DoorTask:
             eqs = [configuration_feature(self.spline, 0.0, q0)]
             for wp in self.contacts:
                 eqs.append(TaskSpaceFeature(self.spline, self._fk(wp, theta), [wp.time], self._targets(wp, theta)))
-            problem = TrajectoryProblem(self.spline.n, costs=[acceleration_feature(self.spline, 4)], equalities=eqs)
+            problem = TrajectoryProblem(self.spline.n, costs=[self._acceleration], equalities=eqs)
             if len(self._constraints) > 64:
                 self._constraints.clear()
             self._constraints[key] = problem
         return problem
+
+    def trajectory_problem(self, theta: np.ndarray) -> TrajectoryProblem:
+        """Eq. 8 at theta: J of Eq. 9 (banded, linear) under Eq. 6; opts the door in to the SQP solver."""
+        return self._constraint_problem(np.asarray(theta, dtype=float).reshape(2))
 
     def projection(self, w: np.ndarray, theta: np.ndarray):
         """Eq. 6 over the contact interval and the fixed start: h (q,), sparse dh/dw (q, n)."""
@@ -165,7 +170,7 @@ class DoorTask:
         with the grasp instead of bending only at the constrained instants."""
         import scipy.sparse as sp
 
-        A = acceleration_feature(self.spline, self.num_steps).A
+        A = self._acceleration.A
         return sp.vstack([A * 1e-2, 0.1 * sp.identity(self.spline.n)]).tocsr()
 
     def method_settings(self):
