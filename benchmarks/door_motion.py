@@ -72,10 +72,10 @@ def main() -> None:
     demo = task.demonstration()
     w0, theta0 = demo.w, demo.theta
     J = lambda w: float(np.dot(task.cost_residuals(w)[0], task.cost_residuals(w)[0]))  # noqa: E731
-    h_max = lambda w, th: float(np.abs(task.projection(w, th)[0]).max())  # noqa: E731
-    before = FunctionProblem(task.cost_residuals, lambda w: task.projection(w, theta0))
+    h_max = lambda w, th: float(np.abs(task.constraint(w, th)[0]).max())  # noqa: E731
+    before = FunctionProblem(task.cost_residuals, lambda w: task.constraint(w, theta0))
     after = task.trajectory_problem(theta0)
-    print(f"door: n = {w0.shape[0]}, q = {task.projection(w0, theta0)[0].shape[0]}, eps_max = {EPS_MAX}, "
+    print(f"door: n = {w0.shape[0]}, q = {task.constraint(w0, theta0)[0].shape[0]}, eps_max = {EPS_MAX}, "
           f"J(w0) = {J(w0):.1f}, {args.steps} steps of Eq. 8, median of {args.repeats}")
     print()
     header = f"{'':34s} {'ms/step':>9s} {'iter/step':>10s} {'converged':>10s} {'final J':>10s} {'max|h|':>9s}"
@@ -91,7 +91,7 @@ def main() -> None:
     theta = theta0 + np.array([0.03, 0.002])
     L = task.projection_metric
     cases = (("Eq. 18, before (augmented Lagr.)",
-              lambda: solve(FunctionProblem(lambda w: (L @ (w - w0), L), lambda w: task.projection(w, theta)), w0,
+              lambda: solve(FunctionProblem(lambda w: (L @ (w - w0), L), lambda w: task.constraint(w, theta)), w0,
                             config=AL)),
              ("Eq. 18, after (SQP, banded KKT)",
               lambda: project(task.trajectory_problem(theta), w0, metric=L, config=SQP)))

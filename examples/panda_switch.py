@@ -122,7 +122,8 @@ class PandaSwitchTask:
         self.tips = self.kin.site("panda_leftfinger_tip", "panda_rightfinger_tip")
         self.hand = self.kin.site("hand")
         self.spline = BSpline(40, 8, duration=DURATION)
-        self._cost = TrajectoryProblem(self.spline.n, costs=[acceleration_feature(self.spline, 100)])
+        self._acceleration = acceleration_feature(self.spline, 100)
+        self._cost = TrajectoryProblem(self.spline.n, costs=[self._acceleration])
         # the waypoints: (time, press angle, height above the paddle); the demonstration's IK knots
         self.waypoints = [(0.8, 0.0, 0.06), (T_TOUCH, 0.0, 0.0), (1.5, 0.1, 0.0), (1.8, 0.2, 0.0),
                           (2.1, PRESS, 0.0), (DURATION, PRESS, 0.0)]
@@ -144,7 +145,7 @@ class PandaSwitchTask:
         knots = solve_waypoints(self.kin, self.tips, targets, seed, start=2, rotation_frame=self.hand)
         times = [0.0] + [t for t, _, _ in self.waypoints]
         w_fit = fit_demonstration(self.spline, times, knots, DT)  # jerky: J has room to improve
-        w0, self.demo_report = project_demonstration(lambda w: self.projection(w, [R_DEMO], q0=knots[0]), w_fit,
+        w0, self.demo_report = project_demonstration(self._problem([R_DEMO], q0=knots[0]), w_fit,
                                                      max_error=0.05)
         return w0, knots[0]
 
@@ -161,11 +162,18 @@ class PandaSwitchTask:
                               corl=CORLConfig(eps_max=0.3, eps_w=1e-4, max_rounds=4, max_optimization_steps=12,
                                               max_rl_trials=25))
 
-    # -- analytic cost and projection (Eq. 6, 9) ------------------------------------------------
+    # -- analytic cost and constraint (Eq. 6, 9) ------------------------------------------------
     def cost_residuals(self, w):
         return self._cost.residuals(w)
 
-    def projection(self, w, theta, *, q0=None):
+    def trajectory_problem(self, theta):
+        """J (accelerations, Eq. 9) under h(., theta) (Eq. 6) as features: the learner solves it by SQP."""
+        return self._problem(theta)
+
+    def constraint(self, w, theta):
+        return self._problem(theta).equalities(w)
+
+    def _problem(self, theta, *, q0=None) -> TrajectoryProblem:
         r = float(np.asarray(theta, dtype=float).reshape(-1)[0])
         key = (r, None if q0 is None else np.asarray(q0).tobytes())
         if key not in self._problems:
@@ -178,9 +186,8 @@ class PandaSwitchTask:
                 eqs.append(TaskSpaceFeature(self.spline, fk, [t], target))
             if len(self._problems) > 64:
                 self._problems.clear()
-            self._problems[key] = TrajectoryProblem(self.spline.n, costs=[acceleration_feature(self.spline, 4)],
-                                                    equalities=eqs)
-        return self._problems[key].equalities(w)
+            self._problems[key] = TrajectoryProblem(self.spline.n, costs=[self._acceleration], equalities=eqs)
+        return self._problems[key]
 
     @cached_property
     def projection_metric(self):
@@ -188,7 +195,7 @@ class PandaSwitchTask:
         shifts the whole motion smoothly instead of bending it only at the constrained instants."""
         import scipy.sparse as sp
 
-        A = acceleration_feature(self.spline, 100).A
+        A = self._acceleration.A
         return sp.vstack([A * 1e-2, 0.1 * sp.identity(self.spline.n)]).tocsr()
 
     def theta_of(self, w):

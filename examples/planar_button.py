@@ -62,7 +62,8 @@ class PlanarButtonTask:
     def __init__(self) -> None:
         self.spline = BSpline(30, 3, duration=DURATION)
         self.q_start = np.array([0.3, 1.2, 1.0])
-        self._cost = TrajectoryProblem(self.spline.n, costs=[acceleration_feature(self.spline, 100)])
+        self._acceleration = acceleration_feature(self.spline, 100)
+        self._cost = TrajectoryProblem(self.spline.n, costs=[self._acceleration])
 
     def demonstration(self) -> Demonstration:
         # scripted: a jerky piecewise-linear reach to 1 cm below the centre, then hold
@@ -85,13 +86,16 @@ class PlanarButtonTask:
     def cost_residuals(self, w):
         return self._cost.residuals(w)
 
-    def projection(self, w, theta):
+    def trajectory_problem(self, theta):
+        """J (accelerations, Eq. 9) under h(., theta) (Eq. 6) as features: the learner solves it by SQP."""
         target = np.array([X_FACE, Y_CENTRE + float(theta[0])])
-        problem = TrajectoryProblem(self.spline.n, costs=[acceleration_feature(self.spline, 4)], equalities=[
+        return TrajectoryProblem(self.spline.n, costs=[self._acceleration], equalities=[
             configuration_feature(self.spline, 0.0, self.q_start),
             TaskSpaceFeature(self.spline, fingertip, [T_CONTACT, DURATION], target),  # press and hold
         ])
-        return problem.equalities(w)
+
+    def constraint(self, w, theta):
+        return self.trajectory_problem(theta).equalities(w)
 
     def theta_of(self, w):
         q = self.spline.positions(w, [T_CONTACT])[0]

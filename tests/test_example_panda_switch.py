@@ -40,7 +40,7 @@ def test_demonstration_is_projected_and_succeeds():
 
     task = make_task()
     demo = task.demonstration()
-    h, _ = task.projection(demo.w, demo.theta)
+    h, _ = task.constraint(demo.w, demo.theta)
     assert np.max(np.abs(h)) < 1e-6                   # on h = 0 after the projection
     assert task.demo_report.error_before > 1e-4       # the fitted spline had missed its waypoints
     assert abs(demo.theta[0] - 0.05) < 1e-6

@@ -56,7 +56,7 @@ class WaypointTask:
     def cost_residuals(self, w):
         return self._cost.residuals(w)
 
-    def projection(self, w, theta):
+    def constraint(self, w, theta):
         points = self.points.copy()
         points[-1, 0] += float(np.asarray(theta)[0])
         eqs = [configuration_feature(self.spline, 0.0, np.zeros(2))]
@@ -92,7 +92,7 @@ def test_phase_steps_are_accepted_and_move_the_contact_instants():
     # the first two legs were rushed (1 m in 0.15 s each, then 1.1 m in 0.55 s): they get more time
     assert moved[0] > task.contact_times[0] and moved[1] > task.contact_times[1]
     # w* still meets Eq. 6 at the re-timed instants, and theta is unchanged
-    h, _ = learner.task.projection(learner.best.w, learner.best.theta)
+    h, _ = learner.task.constraint(learner.best.w, learner.best.theta)
     assert np.max(np.abs(h)) < 1e-4
     assert learner.best.theta == pytest.approx([0.0])
     # the task the user passed in is not modified
@@ -105,5 +105,5 @@ def test_without_retimed_the_contact_instants_keep_their_phase():
     learner = run(task, max_phase_steps=10)
     assert learner.task is task
     for p, _ in learner.history[1:]:  # trial 0 is the demonstration, a B-spline fit
-        h, _ = task.projection(p.w, p.theta)
+        h, _ = task.constraint(p.w, p.theta)
         assert np.max(np.abs(h)) < 1e-4

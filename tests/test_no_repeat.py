@@ -36,7 +36,7 @@ class PathTask:
     def cost_residuals(self, w):
         return np.array([w[1] - 2.0]), np.array([[0.0, 1.0, 0.0]])
 
-    def projection(self, w, theta):
+    def constraint(self, w, theta):
         return np.array([w[0] - theta[0]]), np.array([[1.0, 0.0, 0.0]])
 
     def theta_of(self, w):

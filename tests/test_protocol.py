@@ -13,7 +13,8 @@ from typer.testing import CliRunner
 
 from corl.cli import app
 from corl.errors import InputError
-from corl.problem import OPTIONAL_MEMBERS, REQUIRED_MEMBERS, check_reference
+from corl.problem import Outcome
+from corl.problem import DEPRECATED_MEMBERS, OPTIONAL_MEMBERS, REQUIRED_MEMBERS, check_reference
 from corl.tasks.registry import load_task
 
 # A user's task module: a linear 1-D task whose theta is w[0], with variants that break the protocol.
@@ -38,7 +39,7 @@ class Line:
     def cost_residuals(self, w):
         return np.array([w[1]]), np.array([[0.0, 1.0]])
 
-    def projection(self, w, theta):
+    def constraint(self, w, theta):
         return np.array([w[0] - theta[0]]), np.array([[1.0, 0.0]])
 
     def theta_of(self, w):
@@ -86,7 +87,7 @@ def make_task_missing():
     task.rollout = None
     return type("Half", (), {"name": "half", "theta_bounds": task.theta_bounds, "w_bounds": None,
                              "demonstration": task.demonstration, "cost_residuals": task.cost_residuals,
-                             "projection": task.projection, "theta_of": task.theta_of})()
+                             "constraint": task.constraint, "theta_of": task.theta_of})()
 
 
 def make_with_reference():
@@ -152,6 +153,29 @@ def test_an_optional_member_of_the_wrong_kind_is_named():
         check_task(task)
 
 
+def test_the_old_name_projection_still_gives_h_with_a_warning():
+    from corl.learner import CORL
+    from corl.problem import check_task, constraint_of
+    from corl.realise import constraint_violation
+    from corl.tasks.synthetic import SyntheticTask
+
+    new = SyntheticTask(np.array([1.0, 0.2]))
+    members = {m: getattr(new, m) for m in REQUIRED_MEMBERS if m != "constraint"}
+    old = type("Old", (), {**members, "projection": new.constraint})()
+    with pytest.warns(FutureWarning, match="rename it to constraint"):
+        assert check_task(old) is old
+    with pytest.warns(FutureWarning):
+        assert constraint_of(old) == new.constraint
+    with pytest.warns(FutureWarning):
+        assert constraint_violation(old, [1.0, 0.5], [0.2]) == pytest.approx(constraint_violation(new, [1.0, 0.5], [0.2]))
+    assert constraint_of(new) == new.constraint  # the new name: no warning (pytest's -W error would fail here)
+    with pytest.warns(FutureWarning):
+        learner = CORL(old, lambda *args: None)  # checks h(w0, theta0)
+        learner.ask()
+        learner.tell(Outcome(True, 0.0))  # step 1 (Eq. 8) on the old name's h
+    assert learner.history and np.allclose(learner.ask().theta, old.theta_of(old.demonstration().w))
+
+
 def test_every_optional_member_the_code_reads_is_declared():
     import pathlib
     import re
@@ -164,7 +188,7 @@ def test_every_optional_member_the_code_reads_is_declared():
         text = path.read_text()
         read |= set(re.findall(r"(?:getattr|hasattr)\((?:task|self\.task|the_task), \"(\w+)\"", text))
     assert read, "the pattern found nothing: the test would pass vacuously"
-    undeclared = read - set(OPTIONAL_MEMBERS) - set(REQUIRED_MEMBERS)
+    undeclared = read - set(OPTIONAL_MEMBERS) - set(REQUIRED_MEMBERS) - set(DEPRECATED_MEMBERS)
     assert not undeclared, f"read by name but not declared in corl.problem: {undeclared}"
 
 

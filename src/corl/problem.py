@@ -5,7 +5,9 @@ Glossary
 w       : trajectory (policy) parameters, shape (n,); n >= 1000 on a robot
 theta   : interaction parameters, shape (m,), m = 1..4 (e.g. where the fingers touch a handle)
 J(w)    : analytic cost, known in closed form; here always a sum of squares ``J = r(w) @ r(w)`` (Eq. 7)
-h(w, theta) : projection constraint (Eq. 2, Eq. 6), shape (q,); ``h = 0`` ties w to theta
+h(w, theta) : the constraint (the paper's "projection", Eq. 2, Eq. 6), shape (q,); ``h = 0`` ties w
+          to theta; a task gives it as ``constraint(w, theta)``. "Projection" in corl names only Eq. 18,
+          the closest trajectory on ``h = 0`` (:func:`corl.realise.realise`)
 R(theta): black-box return (Eq. 3), higher is better
 S(theta): black-box success (Eq. 4), True or False
 
@@ -19,8 +21,9 @@ any rollout.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Protocol, Sequence, runtime_checkable
+from typing import Any, Callable, Mapping, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
@@ -29,7 +32,7 @@ from corl.numerics import as_vector
 
 __all__ = ["Bounds", "Outcome", "Proposal", "Demonstration", "Task", "check_theta", "HasMethodSettings",
            "HasProjectionMetric", "HasTrajectoryProblem", "HasSpline", "Retimable", "HasPinnedTimes", "HasReference", "HasJointNames",
-           "HasThetaLabels", "RendersComparison", "REQUIRED_MEMBERS", "OPTIONAL_MEMBERS", "check_task",
+           "HasThetaLabels", "RendersComparison", "REQUIRED_MEMBERS", "OPTIONAL_MEMBERS", "DEPRECATED_MEMBERS", "constraint_of", "check_task",
            "check_reference"]
 
 
@@ -184,8 +187,11 @@ class Task(Protocol):
     def cost_residuals(self, w: np.ndarray) -> tuple[np.ndarray, Any]:
         """Residuals ``r (p,)`` and Jacobian ``dr/dw (p, n)`` (ndarray or scipy.sparse): ``J(w) = r @ r``."""
 
-    def projection(self, w: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, Any]:
-        """``h(w, theta)`` (q,) and its Jacobian ``dh/dw`` (q, n) (Eq. 2, Eq. 6)."""
+    def constraint(self, w: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, Any]:
+        """The constraint ``h(w, theta)`` (q,) and its Jacobian ``dh/dw`` (q, n) (Eq. 2, Eq. 6).
+
+        Named ``projection`` before version 0.2; a task that still has ``projection`` and no
+        ``constraint`` works, with a FutureWarning (:func:`constraint_of`)."""
 
     def theta_of(self, w: np.ndarray) -> np.ndarray:
         """The unique ``theta`` with ``h(w, theta) = 0`` (the projection Theta(w)), (m,)."""
@@ -216,14 +222,14 @@ class HasProjectionMetric(Protocol):
 class HasTrajectoryProblem(Protocol):
     """``trajectory_problem(theta)``: the motion problem of Eq. 8 at ``theta`` (m,) as a
     :class:`corl.trajectory.TrajectoryProblem` built from features: its residuals are the task's
-    ``cost_residuals`` (J, Eq. 7) and its equalities the task's h (``projection(w, theta)``, Eq. 6).
+    ``cost_residuals`` (J, Eq. 7) and its equalities the task's h (``constraint(w, theta)``, Eq. 6).
 
     A task that gives it opts in to the banded SQP solver (:mod:`corl.trajectory.solver.sqp`):
     Alg. 1's step 1 (Eq. 8), the phase steps and Eq. 18 (:func:`corl.realise.realise`, with the
     cost swapped for the distance to ``w*`` by :meth:`~corl.trajectory.TrajectoryProblem.with_costs`)
     then run Newton-KKT steps on the banded Hessian of a linear cost (acceleration features). Without
     it, or when the cost is not linear, the augmented Lagrangian solves the same problems from
-    ``cost_residuals`` and ``projection``. Cache the problem per theta: the learner asks once per
+    ``cost_residuals`` and ``constraint``. Cache the problem per theta: the learner asks once per
     optimization round and once per Eq. 18."""
 
     def trajectory_problem(self, theta: np.ndarray) -> Any: ...
@@ -287,13 +293,30 @@ class RendersComparison(Protocol):
 
 
 REQUIRED_MEMBERS = {"name": False, "theta_bounds": False, "w_bounds": False, "demonstration": True,
-                    "cost_residuals": True, "projection": True, "theta_of": True, "rollout": True}  # name: callable?
+                    "cost_residuals": True, "constraint": True, "theta_of": True, "rollout": True}  # name: callable?
 OPTIONAL_MEMBERS = {"method_settings": (HasMethodSettings, True),
                     "trajectory_problem": (HasTrajectoryProblem, True), "projection_metric": (HasProjectionMetric, False),
                     "spline": (HasSpline, False), "retimed": (Retimable, True),
                     "pinned_times": (HasPinnedTimes, False), "reference": (HasReference, True),
                     "joint_names": (HasJointNames, False), "theta_labels": (HasThetaLabels, False),
                     "render_comparison": (RendersComparison, True)}
+
+
+DEPRECATED_MEMBERS = {"projection": "constraint"}  # old name -> new name; read only when the new one is absent
+
+
+def constraint_of(task) -> Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, Any]]:
+    """The task's constraint ``(w, theta) -> (h (q,), dh/dw (q, n))``: ``task.constraint``, or the old
+    name ``task.projection`` with a FutureWarning (renamed: "projection" now names only Eq. 18)."""
+    fn = getattr(task, "constraint", None)
+    if fn is not None:
+        return fn
+    old = getattr(task, "projection", None)
+    if old is None:
+        raise InputError(f"task '{getattr(task, 'name', '?')}' has no constraint(w, theta) (see corl.problem.Task)")
+    warnings.warn(f"task '{getattr(task, 'name', '?')}' ({type(task).__name__}) gives h as projection(w, theta); "
+                  "rename it to constraint(w, theta) (the old name will be removed)", FutureWarning, stacklevel=2)
+    return old
 
 
 def check_task(task, source: str = "the task") -> Task:
@@ -304,12 +327,18 @@ def check_task(task, source: str = "the task") -> Task:
     ``theta_labels`` sequences of strings of the right length).
     """
     where = f"{source} ({type(task).__name__})"
-    missing = [a for a in REQUIRED_MEMBERS if not hasattr(task, a)]
+    missing = [a for a in REQUIRED_MEMBERS if not hasattr(task, a)
+               and not any(new == a and hasattr(task, old) for old, new in DEPRECATED_MEMBERS.items())]
     if missing:
         raise InputError(f"{where} is not a task: it lacks {', '.join(missing)}; "
                          "add them (see corl.problem.Task and the README's task protocol)")
     for member, is_method in REQUIRED_MEMBERS.items():
-        if is_method and not callable(getattr(task, member)):
+        if member == "constraint":
+            constraint_of(task)  # warns once here when the task still calls it projection
+        value = getattr(task, member, None)
+        if member == "constraint" and value is None:
+            member, value = "projection", getattr(task, "projection", None)
+        if is_method and not callable(value):
             raise InputError(f"{where}: '{member}' must be a method (see corl.problem.Task)")
     if not isinstance(task.theta_bounds, Bounds):
         raise InputError(f"{where}: theta_bounds must be a corl.problem.Bounds, got {type(task.theta_bounds).__name__}")

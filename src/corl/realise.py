@@ -29,7 +29,7 @@ import numpy as np
 
 from corl.errors import InputError
 from corl.numerics import as_vector
-from corl.problem import Demonstration, Task, check_theta
+from corl.problem import Demonstration, Task, check_theta, constraint_of
 from corl.trajectory.solver import FunctionProblem, LeastSquaresProblem, SolveResult, SolverConfig, project
 
 __all__ = ["FEASIBILITY_FACTOR", "DEMONSTRATION_TOLERANCE", "Realisation", "realise", "project_theta", "motion_problem", "feasible",
@@ -74,12 +74,13 @@ def motion_problem(task: Task, theta) -> LeastSquaresProblem:
 
     The task's own structured problem when it gives one (``trajectory_problem``,
     :class:`corl.problem.HasTrajectoryProblem`: the banded SQP path of the solver), else the two
-    callables ``cost_residuals`` and ``projection`` (the augmented Lagrangian).
+    callables ``cost_residuals`` and ``constraint`` (the augmented Lagrangian).
     """
     theta = np.asarray(theta, dtype=float)
     structured = getattr(task, "trajectory_problem", None)  # corl.problem.HasTrajectoryProblem
     if structured is None:
-        return FunctionProblem(task.cost_residuals, lambda w: task.projection(w, theta))
+        h = constraint_of(task)
+        return FunctionProblem(task.cost_residuals, lambda w: h(w, theta))
     problem = structured(theta)
     if not isinstance(problem, LeastSquaresProblem):
         raise InputError(f"task '{task.name}': trajectory_problem(theta) returned {type(problem).__name__}; it must "
@@ -106,7 +107,7 @@ def realise(task: Task, w_star, theta_star, theta, solver: SolverConfig = Solver
 
     Parameters
     ----------
-    task : the task (its ``projection`` gives h; its ``projection_metric``, if any, the metric).
+    task : the task (its ``constraint`` gives h; its ``projection_metric``, if any, the metric of Eq. 18).
     w_star : (n,) the anchor, e.g. the learner's best trajectory or the demonstration's ``w0``.
     theta_star : (m,) the theta ``w_star`` realises: the start of the continuation.
     theta : (m,) the theta to realise; must lie in ``task.theta_bounds``.
@@ -146,7 +147,7 @@ def _realisation(result: SolveResult, theta: np.ndarray, pieces: int, solver: So
 
 def constraint_violation(task: Task, w, theta) -> float:
     """``max |h(w, theta)|``: how far ``w`` (n,) is from realising ``theta`` (m,)."""
-    h, _ = task.projection(as_vector(w, name="w"), np.asarray(theta, dtype=float))
+    h, _ = constraint_of(task)(as_vector(w, name="w"), np.asarray(theta, dtype=float))
     h = np.asarray(h, dtype=float)
     return float(np.max(np.abs(h))) if h.size else 0.0
 

@@ -30,7 +30,7 @@ class Disk:
     def cost_residuals(self, w):
         return np.asarray(w, dtype=float), np.eye(2)
 
-    def projection(self, w, theta):
+    def constraint(self, w, theta):
         w = np.asarray(w, dtype=float)
         return w + w ** 3 - theta, np.diag(1 + 3 * w ** 2)
 
@@ -100,7 +100,7 @@ def test_realise_continues_from_theta_star_when_the_direct_projection_fails():
 
         theta_bounds = Bounds(np.array([-1.0, -1.0]), np.array([1.0, 1.0]))
 
-        def projection(self, w, theta):
+        def constraint(self, w, theta):
             w = np.asarray(w, dtype=float)
             return np.sin(w) - theta, np.diag(np.cos(w))
 

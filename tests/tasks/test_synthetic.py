@@ -23,7 +23,7 @@ def test_jacobians_match_finite_differences():
     for _ in range(10):
         w = rng.uniform(-1.5, 1.5, 2)
         theta = rng.uniform(-3, 3, 1)
-        for f in (task.cost_residuals, lambda v: task.projection(v, theta)):
+        for f in (task.cost_residuals, lambda v: task.constraint(v, theta)):
             val, jac = f(w)
             fd = np.array([(f(w + e)[0] - f(w - e)[0]) / 2e-6 for e in np.eye(2) * 1e-6]).T
             np.testing.assert_allclose(jac, fd, rtol=1e-5, atol=1e-6)

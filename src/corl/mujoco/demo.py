@@ -89,7 +89,8 @@ def project_demonstration(equalities: Callable, w0: np.ndarray, *, tolerance: fl
 
     Parameters
     ----------
-    equalities : ``w (n,) -> (h (q,), dh/dw (q, n))``, e.g. ``lambda w: task.projection(w, theta0)``.
+    equalities : ``w (n,) -> (h (q,), dh/dw (q, n))``, e.g. ``lambda w: task.constraint(w, theta0)``,
+        or a :class:`corl.trajectory.TrajectoryProblem` (then solved on the banded SQP path).
     w0 : (n,) the fitted demonstration.
     tolerance : max |h| the projection must reach.
     max_error : refuse (InputError) a demonstration whose max |h| is above this before projection:
@@ -102,13 +103,14 @@ def project_demonstration(equalities: Callable, w0: np.ndarray, *, tolerance: fl
     from corl.trajectory.solver import SolverConfig, project
 
     w0 = np.asarray(w0, dtype=float)
-    h0, _ = equalities(w0)
+    fn = getattr(equalities, "equalities", equalities)
+    h0, _ = fn(w0)
     before = float(np.max(np.abs(h0))) if np.size(h0) else 0.0
     if max_error is not None and before > max_error:
         raise InputError(f"the demonstration is {before:.3g} from h = 0 (max |h|), above max_error = {max_error:g}; "
                          "check its waypoints against the task's contact targets")
     result = project(equalities, w0, config=SolverConfig(tol_constraint=tolerance))
-    h1, _ = equalities(result.w)
+    h1, _ = fn(result.w)
     after = float(np.max(np.abs(h1))) if np.size(h1) else 0.0
     if not after <= max(tolerance, 1e-12) * 10:
         raise NumericalError(f"projecting the demonstration onto h = 0 stopped at max|h| = {after:.2e} "

@@ -3,7 +3,7 @@
     J(w)        = (w1^2 + w2^2 - 1)^2            analytic cost, residual r(w) = w1^2 + w2^2 - 1
     R(theta)    = -0.5 theta^2 + cos(3 theta)    black-box return
     S(theta)    = [-1.5 < theta < 2.5]           black-box success
-    h(w, theta) = atan2(w2, w1) - theta          projection, theta in (-pi, pi]
+    h(w, theta) = atan2(w2, w1) - theta          the constraint, theta in (-pi, pi]
 
 The paper writes ``h = theta - atan(w1 / w2)`` but also states the optimum ``w* = (1, 0)`` with value
 -1. Both hold only for ``theta = atan2(w2, w1)``: then ``theta* = 0``, ``R(0) = 1`` and ``J(w*) = 0``.
@@ -67,7 +67,7 @@ class SyntheticTask:
         r = w[0] * w[0] + w[1] * w[1] - 1.0
         return np.array([r]), np.array([[2.0 * w[0], 2.0 * w[1]]])
 
-    def projection(self, w: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def constraint(self, w: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         rho2 = max(w[0] * w[0] + w[1] * w[1], 1e-300)
         diff = math.atan2(w[1], w[0]) - float(theta[0])
         diff = (diff + math.pi) % (2.0 * math.pi) - math.pi  # the angle difference on the circle

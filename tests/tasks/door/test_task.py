@@ -16,7 +16,7 @@ def task():
 def test_demonstration_succeeds_and_satisfies_h(task):
     demo = task.demonstration()
     assert demo.w.shape == (1200,)
-    h, Jh = task.projection(demo.w, demo.theta)
+    h, Jh = task.constraint(demo.w, demo.theta)
     assert np.abs(h).max() < 2e-3  # the B-spline fit of the jerky demonstration hits its waypoints
     out = task.rollout(demo.w)
     assert out.success and -0.5 < out.return_ < 0.5  # R = 1 - F / 15 N: the demonstration is near 0
@@ -25,10 +25,10 @@ def test_demonstration_succeeds_and_satisfies_h(task):
 def test_projection_jacobian_matches_finite_differences(task):
     demo = task.demonstration()
     theta = np.array([0.03, 0.014])
-    h, Jh = task.projection(demo.w, theta)
+    h, Jh = task.constraint(demo.w, theta)
     rng = np.random.default_rng(0)
     d = rng.normal(size=demo.w.shape) * 1e-6
-    h2, _ = task.projection(demo.w + d, theta)
+    h2, _ = task.constraint(demo.w + d, theta)
     np.testing.assert_allclose(h2 - h, Jh @ d, rtol=1e-3, atol=1e-9)
 
 
@@ -105,8 +105,8 @@ def test_retimed_moves_the_contact_instants_only(task):
     assert moved.t_contact == pytest.approx(task.t_contact + 0.05)
     assert task.contact_times[0] == task.contacts[0].time  # the original is untouched
     demo = task.demonstration()
-    h, _ = moved.projection(demo.w, demo.theta)
-    h0, _ = task.projection(demo.w, demo.theta)
+    h, _ = moved.constraint(demo.w, demo.theta)
+    h0, _ = task.constraint(demo.w, demo.theta)
     assert np.abs(h).max() > 10 * np.abs(h0).max()  # the constraints now hold at other instants
     with pytest.raises(InputError, match="increasing"):
         task.retimed(lambda t: t[::-1])

@@ -110,7 +110,7 @@ class DoorTask:
         w0 = self._demo_w.copy()
         return Demonstration(w0, self.theta_of(w0))
 
-    # -- analytic cost and projection -----------------------------------------------------------
+    # -- analytic cost and constraint -----------------------------------------------------------
     def cost_residuals(self, w: np.ndarray):
         """Residuals of Eq. 9 (squared accelerations), sparse Jacobian (K-1) 8 x n."""
         return self._cost.residuals(w)
@@ -149,7 +149,7 @@ class DoorTask:
         """Eq. 8 at theta: J of Eq. 9 (banded, linear) under Eq. 6; opts the door in to the SQP solver."""
         return self._constraint_problem(np.asarray(theta, dtype=float).reshape(2))
 
-    def projection(self, w: np.ndarray, theta: np.ndarray):
+    def constraint(self, w: np.ndarray, theta: np.ndarray):
         """Eq. 6 over the contact interval and the fixed start: h (q,), sparse dh/dw (q, n)."""
         theta = np.asarray(theta, dtype=float).reshape(2)
         return self._constraint_problem(theta).equalities(w)
