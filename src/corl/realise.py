@@ -32,7 +32,7 @@ from corl.numerics import as_vector
 from corl.problem import Demonstration, Task, check_theta, constraint_of
 from corl.trajectory.solver import FunctionProblem, LeastSquaresProblem, SolveResult, SolverConfig, project
 
-__all__ = ["FEASIBILITY_FACTOR", "DEMONSTRATION_TOLERANCE", "Realisation", "realise", "project_theta", "motion_problem", "feasible",
+__all__ = ["FEASIBILITY_FACTOR", "DEMONSTRATION_TOLERANCE", "Realisation", "realise", "motion_problem", "feasible",
            "constraint_violation", "check_demonstration", "project_demonstration"]
 
 FEASIBILITY_FACTOR = 10.0  # a realisation is feasible when max|h| <= this x SolverConfig.tol_constraint
@@ -88,7 +88,7 @@ def motion_problem(task: Task, theta) -> LeastSquaresProblem:
     return problem
 
 
-def project_theta(task: Task, theta, anchor, solver: SolverConfig = SolverConfig()) -> SolveResult:
+def _project_once(task: Task, theta, anchor, solver: SolverConfig = SolverConfig()) -> SolveResult:
     """One projection (Eq. 18) of ``anchor`` (n,) onto ``h(., theta) = 0``, in the task's metric.
 
     The paper's Euclidean distance ``||w - w*||`` moves only the few B-spline control points around
@@ -123,14 +123,14 @@ def realise(task: Task, w_star, theta_star, theta, solver: SolverConfig = Solver
     w_star = as_vector(w_star, name="w_star")
     theta_star = check_theta(theta_star, task.theta_bounds, task=task.name)
     theta = check_theta(theta, task.theta_bounds, task=task.name)
-    result = project_theta(task, theta, w_star, solver)
+    result = _project_once(task, theta, w_star, solver)
     if feasible(result, solver):
         return _realisation(result, theta, 0, solver)
     for pieces in _CONTINUATION:
         w = w_star
         for k in range(1, pieces + 1):
             step_theta = theta_star + (theta - theta_star) * (k / pieces)
-            result = project_theta(task, step_theta, w, solver)
+            result = _project_once(task, step_theta, w, solver)
             if not feasible(result, solver):
                 break
             w = result.w
@@ -200,7 +200,7 @@ def project_demonstration(task: Task, demonstration: Demonstration | None = None
     w0 = as_vector(demo.w, name="demonstration w")
     theta0 = check_theta(demo.theta, task.theta_bounds, task=task.name)
     before = constraint_violation(task, w0, theta0)
-    result = project_theta(task, theta0, w0, solver)
+    result = _project_once(task, theta0, w0, solver)
     if not feasible(result, solver):
         raise InputError(f"the demonstration of task '{task.name}' cannot be projected onto h = 0 "
                          f"(max|h| {result.constraint_error:.3g} after projection, {result.status}); "

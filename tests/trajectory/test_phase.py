@@ -1,4 +1,4 @@
-"""Tests of the phase optimization (Eq. 10) and the motion-step schedule."""
+"""Tests of the phase optimization (Eq. 10) and the re-fit of a re-timed path (with Eq. 18)."""
 
 from __future__ import annotations
 
@@ -10,9 +10,6 @@ from corl.trajectory.bspline import BSpline
 from corl.trajectory.features import TrajectoryProblem, acceleration_feature, configuration_feature
 from corl.trajectory.phase import (
     PhaseConfig,
-    ScheduleConfig,
-    StepKind,
-    motion_steps,
     optimize_phase,
     phase_cost,
     retime,
@@ -73,34 +70,15 @@ def test_monotone_repair_and_bad_inputs():
         optimize_phase(SPLINE, badly_timed(), np.linspace(0.1, 1, 51), config=CONFIG)
 
 
-def test_schedule_runs_trajectory_steps_then_phase_steps():
+def test_retime_projects_a_trajectory_problem_on_the_sqp_path():
     w0 = badly_timed()
-    ends = SPLINE.positions(w0, [0.0, 1.0])
-    problem = TrajectoryProblem(
-        SPLINE.n,
-        [acceleration_feature(SPLINE, 40)],
-        [configuration_feature(SPLINE, 0.0, ends[0]), configuration_feature(SPLINE, 1.0, ends[1])],
-    )
-    config = ScheduleConfig(radius=0.5, max_trajectory_steps=3, max_phase_steps=2, phase=CONFIG)
-    steps = list(motion_steps(problem, SPLINE, w0, config=config))
-    kinds = [s.kind for s in steps]
-    assert kinds[0] is StepKind.TRAJECTORY and StepKind.PHASE in kinds
-    assert kinds == sorted(kinds, key=lambda k: k is StepKind.PHASE)  # all trajectory steps first
-    trajectory = [s for s in steps if s.kind is StepKind.TRAJECTORY]
-    assert all(s.step_norm <= 0.5 + 1e-9 for s in trajectory)
-    assert all(b.cost < a.cost for a, b in zip(trajectory, trajectory[1:]))
-    assert all(s.constraint_error < 1e-6 for s in steps)
-    assert [s.index for s in steps] == list(range(len(steps)))
-
-
-def test_alternating_schedule_returns_to_trajectory_steps():
-    w0 = badly_timed()
-    ends = SPLINE.positions(w0, [0.0, 1.0])
-    problem = TrajectoryProblem(
-        SPLINE.n,
-        [acceleration_feature(SPLINE, 40)],
-        [configuration_feature(SPLINE, 0.0, ends[0]), configuration_feature(SPLINE, 1.0, ends[1])],
-    )
-    config = ScheduleConfig(radius=0.5, max_trajectory_steps=2, max_phase_steps=1, phase=CONFIG, alternate=True, max_rounds=2)
-    kinds = [s.kind for s in motion_steps(problem, SPLINE, w0, config=config)]
-    assert kinds == [StepKind.TRAJECTORY] * 2 + [StepKind.PHASE] + [StepKind.TRAJECTORY] * 2 + [StepKind.PHASE]
+    ends = SPLINE.positions(w0, [0.0, 0.5, 1.0])
+    problem = TrajectoryProblem(SPLINE.n, [acceleration_feature(SPLINE, 40)],
+                                [configuration_feature(SPLINE, t, q) for t, q in zip((0.0, 0.5, 1.0), ends)])
+    phase = optimize_phase(SPLINE, w0, config=CONFIG)
+    structured = retime(SPLINE, w0, phase.p, equalities=problem, config=CONFIG)
+    plain = retime(SPLINE, w0, phase.p, equalities=problem.equalities, config=CONFIG)  # a callable: the manifold path
+    assert "SQP" in structured.projection.status and "SQP" not in plain.projection.status
+    assert structured.h_fit > 1e-3 and structured.h_after < 1e-8 and plain.h_after < 1e-8
+    moved = np.linalg.norm(structured.w - structured.w_fit)
+    assert np.linalg.norm(structured.w - plain.w) <= 1e-6 * moved  # Eq. 18 is convex here: one answer

@@ -10,8 +10,8 @@ SQP / Newton-KKT step (:mod:`corl.trajectory.sqp`, :mod:`corl.trajectory.kkt`: t
 complement on the constraint rows, the ball handled exactly, the augmented Lagrangian as merit
 and fallback), which ``SolverConfig.trajectory()`` picks for long trajectories. Both factorize
 banded Cholesky systems (:mod:`corl.trajectory.banded`). :func:`project` is Eq. 18. :mod:`corl.trajectory.phase`
-re-times a trajectory with fixed geometry and schedules trajectory and phase steps
-(:func:`motion_steps`). Solvers know nothing of tasks.
+re-times a trajectory with fixed geometry (Alg. 1 schedules the steps:
+:class:`corl.learner.CORL`). Solvers know nothing of tasks.
 """
 
 from corl.trajectory.banded import BandedSPD, SupportGram
@@ -27,19 +27,14 @@ from corl.trajectory.features import (
 )
 from corl.trajectory.linalg import factorize_spd, solve_spd, trust_region_step
 from corl.trajectory.phase import (
-    MotionStep,
     PhaseConfig,
     PhaseResult,
     RetimeResult,
-    ScheduleConfig,
-    StepKind,
-    motion_steps,
     optimize_phase,
     phase_cost,
     retime,
 )
 from corl.trajectory.solver import (
-    DEFAULT_CONFIG,
     FunctionProblem,
     IterationRecord,
     LeastSquaresProblem,
@@ -53,7 +48,6 @@ __all__ = [
     "LeastSquaresProblem",
     "FunctionProblem",
     "SolverConfig",
-    "DEFAULT_CONFIG",
     "IterationRecord",
     "SolveResult",
     "solve",
@@ -74,10 +68,6 @@ __all__ = [
     "PhaseConfig",
     "PhaseResult",
     "RetimeResult",
-    "ScheduleConfig",
-    "StepKind",
-    "MotionStep",
-    "motion_steps",
     "optimize_phase",
     "phase_cost",
     "retime",

@@ -137,7 +137,7 @@ def _finite_sumsq(r: np.ndarray, h: np.ndarray, w: np.ndarray) -> tuple[float, f
     if not math.isfinite(rr):
         raise _non_finite("residuals", w, "check the cost features (a division by zero or an overflow) and the start")
     if not math.isfinite(hh):
-        raise _non_finite("equalities", w, "check the projection constraint h(w, theta) and its domain")
+        raise _non_finite("equalities", w, "check the constraint h(w, theta) and its domain")
     return rr, hh
 
 

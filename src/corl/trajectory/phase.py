@@ -1,4 +1,4 @@
-"""Phase-profile optimization with fixed geometry (Sec. VI-B, Eq. 10) and the motion-step schedule.
+"""Phase-profile optimization with fixed geometry (Sec. VI-B, Eq. 10) and the re-fit of a re-timed path.
 
 The path of ``xi(w, .)`` is kept and only its timing changes: the re-timed trajectory is
 ``xi(w, p(t) T)`` for a phase profile ``p: [0, T] -> [0, 1]`` discretized at ``t_i = i dt``,
@@ -19,10 +19,8 @@ contact stays where Eq. 6 puts it.
 re-fits the B-spline control points by least squares, then (given the equalities) projects onto
 ``h = 0`` with Eq. 18 and reports how much h changed.
 
-:func:`motion_steps` is the schedule of Sec. VIII-B: trajectory steps (Eq. 8, one trust-region
-solve each) until w stops moving, then phase steps until the phase stops moving - or, with
-``alternate=True``, both in turn. It yields a :class:`MotionStep` after every step, so the CORL
-learner can roll each one out (and stop iterating when one fails); it knows nothing of the learner.
+The schedule of Sec. VIII-B - trajectory steps (Eq. 8) until w stops moving, then phase steps,
+each rolled out - is Algorithm 1's step 1 and lives in one place, :class:`corl.learner.CORL`.
 
 Glossary
 --------
@@ -37,10 +35,9 @@ h          : equality constraints of the trajectory problem (Eq. 6), reported ar
 
 from __future__ import annotations
 
-import enum
 import math
 from dataclasses import dataclass, field
-from typing import Iterator, Sequence
+from typing import Sequence
 
 import numpy as np
 import scipy.sparse as sp
@@ -57,10 +54,6 @@ __all__ = [
     "phase_cost",
     "optimize_phase",
     "retime",
-    "StepKind",
-    "MotionStep",
-    "ScheduleConfig",
-    "motion_steps",
 ]
 
 
@@ -302,147 +295,3 @@ def retime(spline: BSpline, w, p, *, equalities=None, config: PhaseConfig = Phas
     h_fit = float(np.abs(fn(w_fit)[0]).max(initial=0.0))
     projection = project(equalities, w_fit, config=SolverConfig.trajectory())  # SQP for a TrajectoryProblem
     return RetimeResult(projection.w, w_fit, fit_error, h_before, h_fit, projection.constraint_error, projection)
-
-
-# ---------------------------------------------------------------------------------------------
-# The schedule: trajectory steps (Eq. 8), then phase steps (Eq. 10)
-# ---------------------------------------------------------------------------------------------
-class StepKind(enum.Enum):
-    """Which improvement produced a :class:`MotionStep`."""
-
-    TRAJECTORY = "trajectory"  # Eq. 8: trust-region step on w
-    PHASE = "phase"  # Eq. 10: phase step with fixed geometry, then re-fit (and Eq. 18)
-
-
-@dataclass(frozen=True)
-class MotionStep:
-    """One proposal of :func:`motion_steps`.
-
-    Attributes
-    ----------
-    kind : :class:`StepKind`.
-    index : 0, 1, ... over all steps of the run.
-    w : (n,) the proposed parameters.
-    cost : J(w) of the trajectory problem (Eq. 7); ``constraint_error``: its ``max |h(w)|``.
-    step_norm : ``||w - w_previous||``.
-    detail : the :class:`SolveResult` (trajectory step) or ``(PhaseResult, RetimeResult)`` (phase step).
-    """
-
-    kind: StepKind
-    index: int
-    w: np.ndarray
-    cost: float
-    constraint_error: float
-    step_norm: float
-    detail: object
-
-
-@dataclass(frozen=True)
-class ScheduleConfig:
-    """Settings of :func:`motion_steps`.
-
-    Attributes
-    ----------
-    radius : eps_max of Eq. 8, the trust region of each trajectory step on w.
-    tol_w : a kind of step has converged when ``||w_{i+1} - w_i|| < tol_w`` (eps_w of Alg. 1)
-        or when it no longer lowers J.
-    max_trajectory_steps, max_phase_steps : budgets per round.
-    alternate : False (the paper's experiment): trajectory steps to convergence, then phase steps
-        to convergence. True: rounds of both until neither moves (at most ``max_rounds``).
-    max_rounds : rounds when alternating.
-    phase : :class:`PhaseConfig` of the phase steps.
-    solver : :class:`SolverConfig` of the trajectory steps.
-    """
-
-    radius: float = 0.5
-    tol_w: float = 1e-4
-    max_trajectory_steps: int = 50
-    max_phase_steps: int = 20
-    alternate: bool = False
-    max_rounds: int = 10
-    phase: PhaseConfig = field(default_factory=PhaseConfig)
-    solver: SolverConfig = field(default_factory=SolverConfig.trajectory)
-
-    def __post_init__(self) -> None:
-        for name in ("radius", "tol_w"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise InputError(f"ScheduleConfig.{name} must be a positive finite number, got {value!r}")
-        for name in ("max_trajectory_steps", "max_phase_steps", "max_rounds"):
-            value = getattr(self, name)
-            if not isinstance(value, (int, np.integer)) or value < 0:
-                raise InputError(f"ScheduleConfig.{name} must be an integer >= 0, got {value!r}")
-
-
-def motion_steps(
-    problem,
-    spline: BSpline,
-    w0,
-    *,
-    config: ScheduleConfig = ScheduleConfig(),
-    pinned_times: Sequence[float] = (),
-) -> Iterator[MotionStep]:
-    """Yield the motion-optimization proposals of Sec. VI, one per step.
-
-    Parameters
-    ----------
-    problem : the trajectory :class:`~corl.trajectory.solver.LeastSquaresProblem` (J and h, Eq. 8).
-    spline : its basis; w0: (n,) the start (the demonstration or the last w*).
-    config : :class:`ScheduleConfig`.
-    pinned_times : contact times whose phase stays fixed in the phase steps.
-
-    Yields
-    ------
-    MotionStep after every accepted trajectory or phase step. Stop iterating to stop (e.g. when a
-    rollout of the proposal fails); the generator holds no other state.
-    """
-    w = np.asarray(w0, dtype=float).copy()
-    index = 0
-    rounds = config.max_rounds if config.alternate else 1
-    for _ in range(rounds):
-        moved = False
-        for kind, budget in ((StepKind.TRAJECTORY, config.max_trajectory_steps), (StepKind.PHASE, config.max_phase_steps)):
-            for _ in range(budget):
-                step = _trajectory_step(problem, w, config) if kind is StepKind.TRAJECTORY else _phase_step(problem, spline, w, config, pinned_times)
-                if step is None:
-                    break
-                w_new, detail = step
-                cost_old, cost_new = _cost(problem, w), _cost(problem, w_new)
-                norm = float(np.linalg.norm(w_new - w))
-                if norm < config.tol_w or (kind is StepKind.TRAJECTORY and cost_new >= cost_old):
-                    break
-                w = w_new
-                moved = True
-                yield MotionStep(kind, index, w, cost_new, _error(problem, w), norm, detail)
-                index += 1
-        if not moved:
-            return
-
-
-def _trajectory_step(problem, w: np.ndarray, config: ScheduleConfig):
-    """Eq. 8: one trust-region solve around w; None when it fails."""
-    result = solve(problem, w, radius=config.radius, config=config.solver)
-    if not result.converged:
-        return None
-    return result.w, result
-
-
-def _phase_step(problem, spline: BSpline, w: np.ndarray, config: ScheduleConfig, pinned_times):
-    """Eq. 10 around the identity profile of w, re-fit and Eq. 18; None when it does not lower Eq. 10."""
-    phase = optimize_phase(spline, w, config=config.phase, pinned_times=pinned_times)
-    if not phase.cost_after < phase.cost_before:
-        return None
-    retimed = retime(spline, w, phase.p, equalities=problem, config=config.phase)
-    if retimed.projection is not None and not retimed.projection.converged:
-        return None
-    return retimed.w, (phase, retimed)
-
-
-def _cost(problem, w: np.ndarray) -> float:
-    r, _ = problem.residuals(w)
-    return float(np.dot(r, r))
-
-
-def _error(problem, w: np.ndarray) -> float:
-    h, _ = problem.equalities(w)
-    return float(np.abs(h).max(initial=0.0))

@@ -2,8 +2,8 @@
 
 :class:`LeastSquaresProblem` is what :func:`~corl.trajectory.solver.solve` minimises
 (``J = r^T r`` under ``h(w) = 0``); :class:`FunctionProblem` builds one from two callables.
-:class:`SolverConfig` holds the tolerances and budgets (with the named presets ``default``,
-``trajectory`` and ``precise``); :class:`SolveResult` and :class:`IterationRecord` report what
+:class:`SolverConfig` holds the tolerances and budgets (``SolverConfig()`` the defaults, and
+the named presets ``trajectory`` and ``precise``); :class:`SolveResult` and :class:`IterationRecord` report what
 :func:`~corl.trajectory.solver.solve` and :func:`~corl.trajectory.solver.project` did.
 This module knows nothing of the algorithm and imports nothing from :mod:`corl.trajectory.solver`.
 
@@ -34,7 +34,6 @@ __all__ = [
     "SolverMethod",
     "IterationRecord",
     "SolveResult",
-    "DEFAULT_CONFIG",
 ]
 
 Jacobian = Any  # np.ndarray or scipy.sparse matrix, (rows, n)
@@ -184,11 +183,6 @@ class SolverConfig:
             )
 
     @classmethod
-    def default(cls) -> SolverConfig:
-        """The defaults: max|h| <= 1e-6, steps down to 1e-10 relative."""
-        return cls()
-
-    @classmethod
     def trajectory(cls) -> SolverConfig:
         """B-spline trajectories with acceleration costs (Eq. 9) and contact constraints (Eq. 6):
         SQP steps on the banded Hessian (iterations independent of the number of knots),
@@ -208,9 +202,6 @@ class SolverConfig:
     def precise(cls) -> SolverConfig:
         """Tight tolerances (max|h| <= 1e-10) for reference solutions and tests."""
         return cls(tol_constraint=1e-10, tol_step=1e-13, max_iterations=1000, max_outer_iterations=100)
-
-
-DEFAULT_CONFIG = SolverConfig()
 
 
 class IterationRecord(NamedTuple):

@@ -1,7 +1,7 @@
 """Constrained Gauss-Newton with augmented Lagrangian and a trust region (Eq. 8, Eq. 18).
 
-Alg. 1, step 1 improves the trajectory parameters on the analytic cost while the projection
-constraint keeps theta fixed and a ball limits the change (Eq. 8)::
+Alg. 1, step 1 improves the trajectory parameters on the analytic cost while the constraint h
+keeps theta fixed and a ball limits the change (Eq. 8)::
 
     w^(i+1) = argmin_w J(w)   s.t.  h(w) = 0,  ||w - w^(i)|| <= eps_max,    J(w) = r(w)^T r(w)  (Eq. 7)
 
@@ -70,7 +70,6 @@ from corl.trajectory.model import (
 )
 from corl.trajectory.problem_types import (  # re-exported: corl.trajectory.solver stays the public entry
     _DAMPING_FLOOR,
-    DEFAULT_CONFIG,
     FunctionProblem,
     IterationRecord,
     Jacobian,
@@ -89,7 +88,6 @@ __all__ = [
     "SolverMethod",
     "IterationRecord",
     "SolveResult",
-    "DEFAULT_CONFIG",
     "solve",
     "project",
 ]
@@ -288,7 +286,7 @@ def solve(
     *,
     center=None,
     radius: float = math.inf,
-    config: SolverConfig = DEFAULT_CONFIG,
+    config: SolverConfig = SolverConfig(),
 ) -> SolveResult:
     """Solve ``min_w r(w)^T r(w)  s.t.  h(w) = 0,  ||w - center|| <= radius`` (Eq. 8).
 
@@ -469,7 +467,7 @@ def _result(pt: _Point, run: _Run, lam: np.ndarray, mu: float, converged: bool, 
     )
 
 
-def project(equalities, w_star, *, w_init=None, metric=None, config: SolverConfig = DEFAULT_CONFIG) -> SolveResult:
+def project(equalities, w_star, *, w_init=None, metric=None, config: SolverConfig = SolverConfig()) -> SolveResult:
     """Closest point to ``w_star`` that satisfies the constraints: the machinery of Eq. 18.
 
     ``argmin_w ||L (w - w*)||^2  s.t.  h(w) = 0`` with ``L`` the ``metric`` or the identity. The
@@ -526,7 +524,7 @@ def project(equalities, w_star, *, w_init=None, metric=None, config: SolverConfi
         calls[0] += 1
         h, Jh = _checked_pair(fn(w), n, "equalities", "dh/dw")
         if not math.isfinite(_sumsq(h)):
-            raise _non_finite("equalities", w, "check the projection constraint h(w, theta) and its domain")
+            raise _non_finite("equalities", w, "check the constraint h(w, theta) and its domain")
         return h, Jh, _max_abs(h)
 
     found = project_on_manifold(
