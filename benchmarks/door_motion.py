@@ -11,7 +11,7 @@ learner's chain of trust-region steps from the demonstration, ``w(i+1) = argmin 
   :class:`~corl.trajectory.solver.FunctionProblem` of ``cost_residuals`` and ``projection``
   (no ``affine_cost``), hence the augmented Lagrangian (``SolverConfig(method="al")``).
 * after: the task's ``trajectory_problem(theta0)`` with ``SolverConfig()``: SQP / Newton-KKT
-  steps on the banded Hessian (:mod:`corl.trajectory.sqp`), the augmented Lagrangian as fallback.
+  steps on the banded Hessian (:mod:`corl.trajectory.solver.sqp`), the augmented Lagrangian as fallback.
 
 The Eq. 18 rows realise one theta away from theta0 (the grasp 3 cm further along the handle,
 the fingers 2 mm wider) from the demonstration, in the door's acceleration metric, the same

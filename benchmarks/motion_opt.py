@@ -12,7 +12,7 @@ by straight lines).
 corl: :func:`corl.trajectory.solve` on a :class:`corl.trajectory.features.TrajectoryProblem`
 with ``SolverConfig.trajectory()``: SQP (Newton-KKT) steps with the constraint curvature from the
 closed-form fk Hessian, one banded Cholesky per step and the Schur complement on the few
-constraint rows (:mod:`corl.trajectory.sqp`), max|h| <= 1e-8. The scaling table also shows the
+constraint rows (:mod:`corl.trajectory.solver.sqp`), max|h| <= 1e-8. The scaling table also shows the
 augmented-Lagrangian path (``method="al"``, one run per size) for comparison.
 CasADi + Ipopt: the identical NLP (same A, same equalities, same start) with the exact Hessian,
 tol 1e-9; its time is the ``solver(...)`` call only - building the expression graph and the
@@ -162,16 +162,16 @@ def newton_step_ms(problem, w, lam, repeats: int) -> float:
     """One SQP iteration as the solver takes it at (w, lam): evaluate r, h and their Jacobians, the
     banded KKT Hessian H = 2 A^T A + sum_i lam_i d2h_i + 2 mu Jh^T Jh, its banded Cholesky and the
     Schur-complement solve for the step and the new multipliers."""
-    from corl.trajectory.kkt import constrained_step
-    from corl.trajectory.model import _evaluate, _grams, _max_diagonal
-    from corl.trajectory.sqp import _Model
+    from corl.trajectory.solver.kkt import constrained_step
+    from corl.trajectory.solver.model import compute_grams, evaluate_problem, max_diagonal
+    from corl.trajectory.solver.sqp import KKTModel
 
     times = []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        pt = _evaluate(problem, w)
-        _, H_J, gram = _grams(pt)
-        model = _Model(pt, lam, _max_diagonal(H_J) / _max_diagonal(gram), True, False)
+        pt = evaluate_problem(problem, w)
+        _, H_J, gram = compute_grams(pt)
+        model = KKTModel(pt, lam, max_diagonal(H_J) / max_diagonal(gram), True, False)
         d, _, _, _ = constrained_step(model.H, model.g, model.support, model.Js, pt.h)
         times.append(time.perf_counter() - t0)
     assert np.all(np.isfinite(d))

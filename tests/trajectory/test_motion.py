@@ -9,17 +9,17 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from corl.trajectory.banded import BandedSPD
-from corl.trajectory.model import _evaluate, _gauss_newton
 from corl.trajectory.solver import SolverConfig, project, solve
+from corl.trajectory.solver.banded import BandedSPD
+from corl.trajectory.solver.model import evaluate_problem, gauss_newton
 
 
 @pytest.mark.parametrize("method", ["al", "sqp"])
 def test_banded_path_is_used_and_the_result_satisfies_kkt_and_matches_slsqp(reaching, method):
     spline, problem, w0 = reaching()
     assert spline.n == 98
-    pt = _evaluate(problem, w0)
-    _, H = _gauss_newton(pt, np.zeros(17), 1.0)
+    pt = evaluate_problem(problem, w0)
+    _, H = gauss_newton(pt, np.zeros(17), 1.0)
     assert isinstance(H, BandedSPD) and H.bandwidth < 35
     result = solve(problem, w0, config=replace(SolverConfig.trajectory(), method=method))
     assert result.converged, result.status

@@ -1,20 +1,21 @@
-"""Motion optimization of Sec. V-A and VI: B-spline trajectories, k-order Markov features, the
-trust-region step of Eq. 8, phase optimization (Eq. 10) and the projection of Eq. 18.
+"""Motion optimization of Sec. V-A and VI, in two floors.
 
-:class:`BSpline` is the reference trajectory ``xi(w, t) = B(t) w`` (time-major ``w.reshape(P, Q)``);
-:mod:`corl.trajectory.features` builds squared features (Eq. 7, 9) and equality features (Eq. 6)
-with sparse Jacobians and stacks them into a :class:`TrajectoryProblem`. :func:`solve` minimises
-``J = r^T r`` under ``h(w) = 0`` and a trust region ``||w - center|| <= radius``, by one of two
-methods (``SolverConfig.method``): an augmented Lagrangian around damped Gauss-Newton steps, or an
-SQP / Newton-KKT step (:mod:`corl.trajectory.sqp`, :mod:`corl.trajectory.kkt`: the Schur
-complement on the constraint rows, the ball handled exactly, the augmented Lagrangian as merit
-and fallback), which ``SolverConfig.trajectory()`` picks for long trajectories. Both factorize
-banded Cholesky systems (:mod:`corl.trajectory.banded`). :func:`project` is Eq. 18. :mod:`corl.trajectory.phase`
-re-times a trajectory with fixed geometry (Alg. 1 schedules the steps:
-:class:`corl.learner.CORL`). Solvers know nothing of tasks.
+The representation (this package's modules): :class:`BSpline` is the reference trajectory
+``xi(w, t) = B(t) w`` (time-major ``w.reshape(P, Q)``, :mod:`~corl.trajectory.bspline`);
+:mod:`~corl.trajectory.features` and :mod:`~corl.trajectory.taskspace` build squared cost features
+(Eq. 7, 9) and equality features (Eq. 6) with sparse Jacobians and stack them into a
+:class:`TrajectoryProblem` (a banded affine cost when the features are linear); :mod:`~corl.trajectory.phase`
+re-times a trajectory with fixed geometry (Eq. 10).
+
+The solver (:mod:`corl.trajectory.solver`, which knows least-squares problems, not trajectories):
+:func:`solve` minimises ``J = r^T r`` under ``h(w) = 0`` and a trust region
+``||w - center|| <= radius`` (Eq. 8) by SQP / Newton-KKT steps on a banded Hessian where the
+problem has one, else by an augmented Lagrangian around damped Gauss-Newton steps;
+:func:`project` is the machinery of Eq. 18 (public as :func:`corl.realise.realise`).
+
+Algorithm 1 schedules the steps (:class:`corl.learner.CORL`). Neither floor knows of tasks.
 """
 
-from corl.trajectory.banded import BandedSPD, SupportGram
 from corl.trajectory.bspline import BSpline
 from corl.trajectory.features import (
     JointLimitFeature,
@@ -25,7 +26,6 @@ from corl.trajectory.features import (
     configuration_feature,
     velocity_feature,
 )
-from corl.trajectory.linalg import factorize_spd, solve_spd, trust_region_step
 from corl.trajectory.phase import (
     PhaseConfig,
     PhaseResult,
@@ -43,6 +43,8 @@ from corl.trajectory.solver import (
     project,
     solve,
 )
+from corl.trajectory.solver.banded import BandedSPD, SupportGram
+from corl.trajectory.solver.linalg import factorize_spd, solve_spd, trust_region_step
 
 __all__ = [
     "LeastSquaresProblem",

@@ -4,7 +4,7 @@ The policy's reference is a clamped (open uniform) B-spline of degree ``k`` on `
 control points in a Q-dimensional configuration space, so ``n = P Q`` parameters. The layout of w
 is time-major: ``w.reshape(P, Q)[p]`` is control point p, so ``w[p * Q + j]`` is joint j of control
 point p. With this layout every k-order Markov feature (Eq. 7) touches a contiguous block of w, and
-the Gauss-Newton matrix of Eq. 8 is banded (:mod:`corl.trajectory.banded`).
+the Gauss-Newton matrix of Eq. 8 is banded (:mod:`corl.trajectory.solver.banded`).
 
 Derivatives use the derivative spline: the d-th derivative of a degree-k spline on knots ``t`` is a
 spline of degree ``k - d`` on ``t[d:-d]`` whose control points are scaled differences of the
@@ -32,7 +32,7 @@ import scipy.sparse as sp
 from scipy.interpolate import BSpline as _ScipyBSpline
 
 from corl.errors import InputError
-from corl.trajectory.banded import BandedSPD, banded_cholesky
+from corl.trajectory.solver.banded import BandedSPD, banded_cholesky
 
 __all__ = ["BSpline"]
 

@@ -39,7 +39,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from corl.errors import InputError, NumericalError
-from corl.trajectory.banded import BandedSPD, SupportGram
+from corl.trajectory.solver.banded import BandedSPD, SupportGram
 from corl.trajectory.bspline import BSpline
 from corl.trajectory.taskspace import ForwardKinematics, TaskSpaceFeature  # noqa: F401  (re-exported)
 
@@ -290,7 +290,7 @@ class TrajectoryProblem:
 
         Returns ``(h, support (s,), Js (q, s), pairs)`` with ``Js = dh/dw[:, support]`` and
         ``pairs`` the (rows, cols) of the lower triangle of ``Js^T Js`` that are structurally
-        non-zero (for :class:`~corl.trajectory.banded.SupportGram`); or None when some nonlinear
+        non-zero (for :class:`~corl.trajectory.solver.banded.SupportGram`); or None when some nonlinear
         equality does not offer ``jacobian_rows`` (then use :meth:`equalities`). The solver's
         banded path calls this once per iterate: the layout is built on the first call.
         """

@@ -1,6 +1,6 @@
 """Equality-constrained Newton (KKT) steps on a banded Hessian, inside the trust region of Eq. 8.
 
-The SQP iteration of :mod:`corl.trajectory.sqp` needs, at each iterate, the step ``d`` and the new
+The SQP iteration of :mod:`corl.trajectory.solver.sqp` needs, at each iterate, the step ``d`` and the new
 multipliers ``lam`` of the equality-constrained quadratic model
 
     min_d  g^T d + d^T H d / 2   s.t.  Jh d = -h,   ||u + d|| <= radius,
@@ -34,7 +34,7 @@ constraints cannot be met inside the ball (:class:`Unreachable`).
 
 Glossary
 --------
-H        : (n, n) :class:`~corl.trajectory.banded.BandedSPD`, the Hessian of the Lagrangian (plus
+H        : (n, n) :class:`~corl.trajectory.solver.banded.BandedSPD`, the Hessian of the Lagrangian (plus
            ``2 mu Jh^T Jh``); ``H + nu I`` must be positive definite
 g, b, c  : (n,) gradient of the model; right-hand sides (n,) and (q,) of a KKT solve
 h        : (q,) constraint values;  Jh: their Jacobian, given on its support as ``Js`` (q, s)
@@ -52,12 +52,12 @@ import numpy as np
 from scipy.linalg.lapack import dpotrf, dpotrs, dtbtrs
 
 from corl.errors import NumericalError
-from corl.trajectory.banded import BandedSPD, banded_cholesky
+from corl.trajectory.solver.banded import BandedSPD, banded_cholesky
 
 __all__ = ["StepFailure", "IndefiniteHessian", "Unreachable", "KKTSystem", "constrained_step"]
 
 _DEGENERATE = 1e-14  # S or Jh Jh^T is singular when its smallest pivot^2 is below this x its largest diagonal
-_SECULAR_TOL = 1e-12  # relative accuracy of ||z|| = radius, as corl.trajectory.linalg
+_SECULAR_TOL = 1e-12  # relative accuracy of ||z|| = radius, as corl.trajectory.solver.linalg
 _SECULAR_MAX_ITER = 50
 _REACH_MARGIN = 1e-6  # the ball must leave this fraction of radius^2 to the null-space part of the step
 _MAX_INDEFINITE = 2  # indefinite shifts met in the ball iteration before it gives up (the hard case)

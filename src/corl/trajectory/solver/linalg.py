@@ -2,7 +2,7 @@
 
 Every linear solve of :mod:`corl.trajectory.solver` goes through :func:`factorize_spd`, so the
 choice of factorization lives in one place: dense Cholesky for ``np.ndarray``; banded Cholesky
-(LAPACK ``dpbtrf``, :mod:`corl.trajectory.banded`) for a :class:`BandedSPD` and for
+(LAPACK ``dpbtrf``, :mod:`corl.trajectory.solver.banded`) for a :class:`BandedSPD` and for
 ``scipy.sparse`` input whose bandwidth - in the natural ordering or after reverse Cuthill-McKee -
 is below a quarter of n (long trajectories, k-order Markov structure of Eq. 7); a sparse LU on CSC
 for other sparse input. No dense inverse is formed.
@@ -34,7 +34,7 @@ from scipy.sparse.linalg import splu
 
 from corl.errors import InputError, NumericalError
 from corl.numerics import cholesky
-from corl.trajectory.banded import BandedCholeskyFactor, BandedSPD, banded_cholesky, banded_ordering
+from corl.trajectory.solver.banded import BandedCholeskyFactor, BandedSPD, banded_cholesky, banded_ordering
 
 __all__ = [
     "SPDFactor",

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from corl.trajectory.banded import BandedCholeskyFactor, BandedSPD, SupportGram, banded_cholesky
-from corl.trajectory.linalg import SparseLUFactor, factorize_spd
+from corl.trajectory.solver.banded import BandedCholeskyFactor, BandedSPD, SupportGram, banded_cholesky
+from corl.trajectory.solver.linalg import SparseLUFactor, factorize_spd
 
 
 def banded_spd(n=60, u=5, seed=0):

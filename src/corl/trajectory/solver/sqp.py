@@ -10,7 +10,7 @@ conditions of Eq. 8 do not (Nocedal & Wright, Numerical Optimization, Eq. 18.9 a
     (H_J + sum_i lam_i d2h_i + 2 mu Jh^T Jh) d + Jh^T lam+ = -(gJ + 2 mu Jh^T h),    Jh d = -h,
 
 solved through the Schur complement on one banded Cholesky factor, inside the trust region
-(:mod:`corl.trajectory.kkt`). The ``mu`` terms cancel on ``Jh d = -h``, so they do not change the
+(:mod:`corl.trajectory.solver.kkt`). The ``mu`` terms cancel on ``Jh d = -h``, so they do not change the
 step, but they make the matrix definite where ``H_J`` is only semi-definite (the start and goal
 constraints pin the motions that cost no acceleration). When the constraint curvature makes the
 matrix indefinite, mu is raised, and failing that the step is the Gauss-Newton one without it
@@ -41,18 +41,18 @@ nu         : multiplier of the trust-region ball (a shift of the KKT Hessian)
 from __future__ import annotations
 
 import math
-from typing import Any
 
 import numpy as np
 from scipy.linalg.blas import dsbmv
 
 from corl.errors import NumericalError
-from corl.trajectory.banded import BandedSPD, SupportGram
-from corl.trajectory.kkt import IndefiniteHessian, StepFailure, constrained_step
-from corl.trajectory.model import NOISE, _grams, _max_diagonal, _Point, _sumsq
-from corl.trajectory.problem_types import SolverConfig, SolverMethod
+from corl.trajectory.solver.banded import BandedSPD, SupportGram
+from corl.trajectory.solver.kkt import IndefiniteHessian, StepFailure, constrained_step
+from corl.trajectory.solver.model import NOISE, Iterate, compute_grams, max_diagonal, sumsq
+from corl.trajectory.solver.problem import SolverConfig, SolverMethod
+from corl.trajectory.solver.state import SolveState
 
-__all__ = ["sqp_applies", "sqp"]
+__all__ = ["sqp_applies", "sqp", "KKTModel"]
 
 _ARMIJO = 1e-4  # sufficient decrease of the merit function, relative to alpha phi'(0)
 _MAX_BACKTRACKS = 12  # halvings of the step before the line search gives up
@@ -63,7 +63,7 @@ _MU_MAX = 1e6  # mu stays below this multiple of its first value
 _EPS = float(np.finfo(float).eps)
 
 
-def sqp_applies(pt: _Point, config: SolverConfig) -> bool:
+def sqp_applies(pt: Iterate, config: SolverConfig) -> bool:
     """True when ``config`` asks for SQP and the problem has a banded affine cost and equalities."""
     return (
         config.method is SolverMethod.SQP
@@ -73,14 +73,14 @@ def sqp_applies(pt: _Point, config: SolverConfig) -> bool:
     )
 
 
-class _Model:
+class KKTModel:
     """The KKT model at one iterate: ``H`` (banded), ``g``, ``gJ`` and the constraint Jacobian's support."""
 
     __slots__ = ("H", "g", "gJ", "support", "Js", "nu_definite")
 
-    def __init__(self, pt: _Point, lam: np.ndarray, mu: float, curvature: bool, ball: bool) -> None:
+    def __init__(self, pt: Iterate, lam: np.ndarray, mu: float, curvature: bool, ball: bool) -> None:
         H_J, _ = pt.affine
-        gJ, _, gram = pt.grams or _grams(pt)  # gJ = H_J w - c; gram = 2 Jh^T Jh with Js = Jh[:, support]
+        gJ, _, gram = pt.grams or compute_grams(pt)  # gJ = H_J w - c; gram = 2 Jh^T Jh with Js = Jh[:, support]
         self.support, self.Js, self.gJ = gram.support, gram.Js, gJ
         self.H = (mu * gram).added_to(H_J)  # H_J + 2 mu Jh^T Jh, a new banded matrix
         self.nu_definite = 0.0  # a shift that makes H definite (H_J + 2 mu Jh^T Jh is semi-definite)
@@ -93,12 +93,12 @@ class _Model:
                     self.H = C.added_to(self.H)
                 lowest = float(np.linalg.eigvalsh(C.G)[0]) if ball and C.G.shape[0] else 0.0
                 if lowest < 0.0:  # only a ball step uses it
-                    self.nu_definite = -lowest * (1.0 + 1e-6) + 1e-12 * _max_diagonal(self.H)
+                    self.nu_definite = -lowest * (1.0 + 1e-6) + 1e-12 * max_diagonal(self.H)
         self.g = gJ.copy()
         self.g[self.support] += (2.0 * mu) * np.dot(pt.h, self.Js)  # + 2 mu Jh^T h
 
 
-def _step(pt: _Point, lam: np.ndarray, mu: float, mu_max: float, u, radius: float, nu_guess: float, newton: bool):
+def _step(pt: Iterate, lam: np.ndarray, mu: float, mu_max: float, u, radius: float, nu_guess: float, newton: bool):
     """The KKT step at ``pt`` with the Newton Hessian (``newton``) - with mu raised (up to
     ``mu_max``) when ``mu Jh^T Jh`` is too weak to make it definite - or, when it stays indefinite
     and no ball makes up for it, the Gauss-Newton one without the constraint curvature.
@@ -107,7 +107,7 @@ def _step(pt: _Point, lam: np.ndarray, mu: float, mu_max: float, u, radius: floa
     """
     tries = [(True, weight) for weight in (mu, mu * _MU_GROWTH, mu * _MU_GROWTH**2) if weight <= mu_max and newton]
     for curvature, weight in tries + [(False, mu)]:
-        model = _Model(pt, lam, weight, curvature, u is not None)
+        model = KKTModel(pt, lam, weight, curvature, u is not None)
         try:
             d, lam_plus, z, nu = constrained_step(
                 model.H, model.g, model.support, model.Js, pt.h, u, radius,
@@ -119,10 +119,11 @@ def _step(pt: _Point, lam: np.ndarray, mu: float, mu_max: float, u, radius: floa
     raise StepFailure("the Hessian is singular or indefinite even without the constraint curvature")
 
 
-def sqp(run: Any, pt: _Point) -> tuple[_Point, np.ndarray | None, bool, str]:
+def sqp(state: SolveState, pt: Iterate) -> tuple[Iterate, np.ndarray | None, bool, str]:
     """SQP iterations from ``pt`` (N&W Alg. 18.3 with the merit function and ball of the module docstring).
 
-    ``run`` is the solver's :class:`~corl.trajectory.solver._Run` (config, ball, counters, history).
+    ``state`` is the solve's :class:`~corl.trajectory.solver.state.SolveState` (config, ball,
+    counters, history), shared with the augmented Lagrangian that takes over when SQP gives up.
 
     Returns
     -------
@@ -131,31 +132,31 @@ def sqp(run: Any, pt: _Point) -> tuple[_Point, np.ndarray | None, bool, str]:
         ``(pt, None, False, reason)`` when SQP gave up at ``pt`` (the caller falls back on the
         augmented Lagrangian).
     """
-    cfg = run.config
-    _, H_J, gram = pt.grams or _grams(pt)
-    c_cost, c_con = _max_diagonal(H_J), _max_diagonal(gram)
+    cfg = state.config
+    _, H_J, gram = pt.grams or compute_grams(pt)
+    c_cost, c_con = max_diagonal(H_J), max_diagonal(gram)
     mu = mu0 = _MU_RELATIVE * (c_cost / c_con if c_cost > 0 and c_con > 0 else 1.0)
     rounding = _Rounding(pt)
     lam, rho, nu = np.zeros(pt.h.shape[0]), 0.0, 0.0
     while True:
-        if run.iterations >= cfg.max_iterations:
+        if state.iterations >= cfg.max_iterations:
             return pt, lam, False, _budget_status(cfg, pt)
-        u = None if run.center is None else pt.w - run.center
+        u = None if state.center is None else pt.w - state.center
         try:
-            model, d, lam_plus, z, nu, mu = _step(pt, lam, mu, _MU_MAX * mu0, u, run.radius, nu, True)
+            model, d, lam_plus, z, nu, mu = _step(pt, lam, mu, _MU_MAX * mu0, u, state.radius, nu, True)
             curvature = _curvature(model, d, nu)
             if not curvature > 0.0:  # negative curvature along a ball step: no descent guarantee, take Gauss-Newton
-                model, d, lam_plus, z, nu, _ = _step(pt, lam, mu, _MU_MAX * mu0, u, run.radius, nu, False)
+                model, d, lam_plus, z, nu, _ = _step(pt, lam, mu, _MU_MAX * mu0, u, state.radius, nu, False)
                 curvature = _curvature(model, d, nu)
         except StepFailure as err:
             return pt, None, False, str(err)
-        dn = math.sqrt(_sumsq(d))
+        dn = math.sqrt(sumsq(d))
         if not math.isfinite(dn):
             raise NumericalError("the SQP step is NaN or inf; the Jacobians are probably non-finite or wildly scaled")
         feasible = pt.err <= cfg.tol_constraint
         # Stop at a feasible point when the step is small, or when it is rounding noise: a step
         # d = (H + nu I)^{-1} e driven by an error e of gJ has d^T (H + nu I) d = -e^T d <= ||e|| ||d||.
-        small = dn <= cfg.tol_step * (1.0 + math.sqrt(_sumsq(pt.w)))
+        small = dn <= cfg.tol_step * (1.0 + math.sqrt(sumsq(pt.w)))
         if feasible and (small or curvature + 0.5 * nu * dn * dn <= rounding.gradient(pt.w) * dn):
             how = "the step is below tol_step" if small else "the step is at the rounding level of the gradient"
             return pt, lam_plus, True, _converged_status(cfg, pt, how)
@@ -172,9 +173,9 @@ def sqp(run: Any, pt: _Point) -> tuple[_Point, np.ndarray | None, bool, str]:
         if feasible and -slope <= noise:
             how = "the predicted decrease of the merit function is below its rounding error"
             return pt, lam_plus, True, _converged_status(cfg, pt, how)
-        found = _line_search(run, pt, lam, dlam, d, z, slope, rho, noise) if slope < 0.0 else None
+        found = _line_search(state, pt, lam, dlam, d, z, slope, rho, noise) if slope < 0.0 else None
         if found is None:
-            if run.iterations >= cfg.max_iterations:
+            if state.iterations >= cfg.max_iterations:
                 return pt, lam, False, _budget_status(cfg, pt)
             if feasible and -slope <= _NOISE_MARGIN * noise:
                 return pt, lam_plus, True, _converged_status(cfg, pt, "the merit function is flat to rounding")
@@ -183,16 +184,16 @@ def sqp(run: Any, pt: _Point) -> tuple[_Point, np.ndarray | None, bool, str]:
                 f"phi'(0) = {slope:.3g})"
             )
         trial, alpha = found
-        run.record(trial, alpha * dn, nu, rho)
+        state.record(trial, alpha * dn, nu, rho)
         pt, lam = trial, lam + alpha * dlam
 
 
-def _curvature(model: _Model, d: np.ndarray, nu: float) -> float:
+def _curvature(model: KKTModel, d: np.ndarray, nu: float) -> float:
     """``d^T (H + nu I / 2) d``: positive when the step is a descent direction of the merit function."""
     return float(np.dot(d, model.H @ d)) + 0.5 * nu * float(np.dot(d, d))
 
 
-def _line_search(run: Any, pt: _Point, lam, dlam, d, z, slope: float, rho: float, noise: float):
+def _line_search(state: SolveState, pt: Iterate, lam, dlam, d, z, slope: float, rho: float, noise: float):
     """Backtracking from ``alpha = 1`` until ``phi`` decreases by ``_ARMIJO alpha phi'(0)``
     (``slope``), or - when that is below its rounding error ``noise`` - does not rise beyond it.
 
@@ -201,10 +202,10 @@ def _line_search(run: Any, pt: _Point, lam, dlam, d, z, slope: float, rho: float
     phi = pt.rr + float(np.dot(lam, pt.h)) + 0.5 * rho * pt.hh
     alpha = 1.0
     for _ in range(_MAX_BACKTRACKS):
-        if run.iterations >= run.config.max_iterations:
+        if state.iterations >= state.config.max_iterations:
             return None
-        run.iterations += 1
-        trial = run.evaluate(run.new_point(pt.w, d, z) if alpha == 1.0 else pt.w + alpha * d)
+        state.iterations += 1
+        trial = state.evaluate(state.new_point(pt.w, d, z) if alpha == 1.0 else pt.w + alpha * d)
         lam_t = lam + alpha * dlam
         phi_t = trial.rr + float(np.dot(lam_t, trial.h)) + 0.5 * rho * trial.hh
         if phi_t <= phi + _ARMIJO * alpha * slope or (-alpha * slope <= noise and phi_t <= phi + noise):
@@ -221,7 +222,7 @@ class _Rounding:
     ``eps (|H_J| |w| + |c|)`` entry by entry, far above ``eps |r|`` and ``eps |gJ|``.
     """
 
-    def __init__(self, pt: _Point) -> None:
+    def __init__(self, pt: Iterate) -> None:
         H_J, c = pt.affine
         self.abs_ab = np.asfortranarray(np.abs(H_J.ab))
         self.abs_c = np.abs(c)
@@ -230,9 +231,9 @@ class _Rounding:
     def gradient(self, w: np.ndarray) -> float:
         """Norm of the rounding error of ``gJ`` at w."""
         terms = dsbmv(self.abs_ab.shape[0] - 1, 1.0, self.abs_ab, np.abs(w)) + self.abs_c
-        return _EPS * math.sqrt(_sumsq(terms))
+        return _EPS * math.sqrt(sumsq(terms))
 
-    def cost(self, pt: _Point) -> float:
+    def cost(self, pt: Iterate) -> float:
         """Rounding error of ``J = r^T r`` at pt: ``2 |r|^T dr`` with ``dr = eps (2 |A| |w| + |r|)``
         (``|b| <= |A| |w| + |r|``)."""
         abs_r = np.abs(pt.r)
@@ -240,11 +241,11 @@ class _Rounding:
         return 2.0 * _EPS * float(np.dot(abs_r, dr))
 
 
-def _converged_status(cfg: SolverConfig, pt: _Point, how: str) -> str:
+def _converged_status(cfg: SolverConfig, pt: Iterate, how: str) -> str:
     return f"converged (SQP): {how} and max|h| = {pt.err:.2e} <= tol_constraint = {cfg.tol_constraint:g}"
 
 
-def _budget_status(cfg: SolverConfig, pt: _Point) -> str:
+def _budget_status(cfg: SolverConfig, pt: Iterate) -> str:
     return (
         f"not converged: max_iterations = {cfg.max_iterations} SQP iterations used, "
         f"max|h| = {pt.err:.2e}; raise max_iterations or loosen tol_step / tol_constraint"

@@ -1,4 +1,4 @@
-"""Tests of the banded KKT steps of the SQP solver (corl.trajectory.kkt) against dense linear algebra."""
+"""Tests of the banded KKT steps of the SQP solver (corl.trajectory.solver.kkt) against dense linear algebra."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import pytest
 import scipy.sparse as sp
 from scipy.linalg import null_space
 
-from corl.trajectory.banded import BandedSPD
-from corl.trajectory.kkt import (
+from corl.trajectory.solver.banded import BandedSPD
+from corl.trajectory.solver.kkt import (
     IndefiniteHessian,
     KKTSystem,
     StepFailure,

@@ -1,6 +1,6 @@
 """The Gauss-Newton model of the augmented Lagrangian for :mod:`corl.trajectory.solver`.
 
-One evaluation of the problem (:class:`_Point`) and the gradient and Gauss-Newton Hessian of
+One evaluation of the problem (:class:`Iterate`) and the gradient and Gauss-Newton Hessian of
 
     L_A(w) = r^T r + lam^T h + mu h^T h                 (N&W Framework 17.3, around Eq. 8)
 
@@ -20,18 +20,18 @@ affine     : ``(2 Jr^T Jr, 2 Jr^T b)`` given by a problem with affine residuals 
 
 A problem whose residuals are affine in w (linear features, Eq. 9) may offer ``affine_cost()``,
 returning the constant Gauss-Newton Hessian ``2 Jr^T Jr`` (ndarray, scipy.sparse or
-:class:`~corl.trajectory.banded.BandedSPD`) and ``c = 2 Jr^T b`` (n,), so that the gradient of J is
+:class:`~corl.trajectory.solver.banded.BandedSPD`) and ``c = 2 Jr^T b`` (n,), so that the gradient of J is
 ``2 Jr^T Jr w - c``; or None. Neither is then recomputed at any iterate. With a banded Hessian,
-``2 Jh^T Jh`` is kept as a :class:`~corl.trajectory.banded.SupportGram` on the few columns the
+``2 Jh^T Jh`` is kept as a :class:`~corl.trajectory.solver.banded.SupportGram` on the few columns the
 constraints touch and H stays banded (factorized by LAPACK ``dpbtrf``).
 
 A problem with such a banded cost may also offer ``equalities_on_support(w)``, returning ``h`` and
 ``dh/dw`` as a dense block on the few columns it touches (``(h, support, Js, pairs)``, see
 :meth:`~corl.trajectory.features.TrajectoryProblem.equalities_on_support`) or None: then no
-sparse Jh is built per iterate (``_Point.Jh`` is None and ``_Point.JhJh`` holds ``2 Jh^T Jh``).
+sparse Jh is built per iterate (``Iterate.Jh`` is None and ``Iterate.JhJh`` holds ``2 Jh^T Jh``).
 
 A problem may also offer ``equality_curvature(w, nu)``, returning ``sum_i nu_i d^2 h_i / dw^2``
-(a :class:`~corl.trajectory.banded.SupportGram`, ndarray or scipy.sparse, or None): the
+(a :class:`~corl.trajectory.solver.banded.SupportGram`, ndarray or scipy.sparse, or None): the
 Lagrangian curvature that Gauss-Newton drops. It is added to H with ``nu = lam + 2 mu h``, which
 makes the steps on nonlinear constraints Newton steps (as Ipopt's exact Hessian); H may then be
 indefinite, and the solver raises the damping until it factorizes.
@@ -40,13 +40,14 @@ indefinite, and the solver raises the damping until it factorizes.
 from __future__ import annotations
 
 import math
-from typing import Any
+from dataclasses import dataclass, field
+from typing import Any, Callable
 
 import numpy as np
 import scipy.sparse as sp
 
 from corl.errors import InputError, NumericalError
-from corl.trajectory.banded import BandedSPD, SupportGram
+from corl.trajectory.solver.banded import BandedSPD, SupportGram
 
 Jacobian = Any  # np.ndarray or scipy.sparse matrix, (rows, n)
 
@@ -54,25 +55,44 @@ NOISE = 8 * np.finfo(float).eps  # relative rounding level of L_A below which de
 _SMALL = 32  # vectors up to this length are reduced in Python (cheaper than a ufunc call)
 
 
-class _Point:
-    """The problem evaluated at ``w``: residuals, constraints, Jacobians and their squared norms.
+@dataclass(slots=True, eq=False)
+class Iterate:
+    """The problem evaluated at one point ``w``: what every step strategy reads (shared by the
+    augmented Lagrangian, :mod:`~corl.trajectory.solver.al`, and SQP, :mod:`~corl.trajectory.solver.sqp`).
 
-    ``err`` is ``max |h|``; ``grams`` caches ``(2 Jr^T r, 2 Jr^T Jr, 2 Jh^T Jh)`` for
-    :func:`_gauss_newton` (filled on first use, reused when only lam or mu change).
+    Attributes
+    ----------
+    w : (n,) the point.
+    r, Jr : residuals (p,) and ``dr/dw`` (p, n), ndarray or scipy.sparse.
+    h, Jh : constraints (q,) and ``dh/dw`` (q, n); ``Jh`` is None when the problem gave it on its
+        support only (then ``JhJh`` holds ``2 Jh^T Jh``).
+    rr, hh : ``r^T r`` (J, Eq. 7) and ``h^T h``.
+    affine : ``(2 Jr^T Jr, 2 Jr^T b)`` of an affine cost (the problem's ``affine_cost()``), or None.
+    curvature : the problem's ``equality_curvature`` (``(w, nu) -> sum_i nu_i d2h_i``), or None.
+    JhJh : ``2 Jh^T Jh`` as a :class:`~corl.trajectory.solver.banded.SupportGram`, or None.
+    err : ``max |h|`` (0 without constraints); set from ``h``.
+    grams : cache of ``(2 Jr^T r, 2 Jr^T Jr, 2 Jh^T Jh)``, filled by :func:`compute_grams` on first
+        use and reused while only lam or mu change.
     """
 
-    __slots__ = ("w", "r", "Jr", "h", "Jh", "rr", "hh", "err", "grams", "affine", "curvature", "JhJh")
+    w: np.ndarray
+    r: np.ndarray
+    Jr: Jacobian
+    h: np.ndarray
+    Jh: Jacobian | None
+    rr: float
+    hh: float
+    affine: tuple | None = None
+    curvature: Callable | None = None
+    JhJh: SupportGram | None = None
+    err: float = field(init=False)
+    grams: tuple | None = field(default=None, init=False)
 
-    def __init__(self, w, r, Jr, h, Jh, rr: float, hh: float, affine=None, curvature=None, JhJh=None) -> None:
-        self.w, self.r, self.Jr, self.h, self.Jh, self.rr, self.hh = w, r, Jr, h, Jh, rr, hh
-        self.err = _max_abs(h)
-        self.grams: tuple | None = None
-        self.affine = affine
-        self.curvature = curvature  # problem.equality_curvature or None
-        self.JhJh = JhJh  # 2 Jh^T Jh as a SupportGram when Jh came as its support block (Jh is then None)
+    def __post_init__(self) -> None:
+        self.err = max_abs(self.h)
 
 
-def _checked_pair(pair, n: int, what: str, jac_name: str) -> tuple[np.ndarray, Jacobian]:
+def checked_pair(pair, n: int, what: str, jac_name: str) -> tuple[np.ndarray, Jacobian]:
     """Validate one ``(value, Jacobian)`` return (done on every call; cheap)."""
     try:
         value, jac = pair
@@ -91,15 +111,15 @@ def _checked_pair(pair, n: int, what: str, jac_name: str) -> tuple[np.ndarray, J
     return value, jac
 
 
-def _non_finite(what: str, w: np.ndarray, hint: str) -> NumericalError:
+def non_finite_error(what: str, w: np.ndarray, hint: str) -> NumericalError:
     return NumericalError(
         f"{what} returned NaN or inf at w = {np.array2string(w, precision=6, threshold=8)}; {hint}"
     )
 
 
-def _evaluate(problem, w: np.ndarray) -> _Point:
+def evaluate_problem(problem, w: np.ndarray) -> Iterate:
     n = w.shape[0]
-    r, Jr = _checked_pair(problem.residuals(w), n, "residuals", "dr/dw")
+    r, Jr = checked_pair(problem.residuals(w), n, "residuals", "dr/dw")
     affine = getattr(problem, "affine_cost", None)
     affine = None if affine is None else affine()
     on_support = getattr(problem, "equalities_on_support", None)
@@ -107,16 +127,16 @@ def _evaluate(problem, w: np.ndarray) -> _Point:
         banded = _evaluate_on_support(problem, w, r, Jr, affine, on_support(w))
         if banded is not None:
             return banded
-    h, Jh = _checked_pair(problem.equalities(w), n, "equalities", "dh/dw")
+    h, Jh = checked_pair(problem.equalities(w), n, "equalities", "dh/dw")
     rr, hh = _finite_sumsq(r, h, w)
     if (type(Jr) is not type(Jh)) and h.shape[0] > 0 and sp.issparse(Jr) != sp.issparse(Jh):  # mixed: go sparse
         Jr, Jh = sp.csr_matrix(Jr), sp.csr_matrix(Jh)
     curvature = getattr(problem, "equality_curvature", None) if h.shape[0] else None
-    return _Point(w, r, Jr, h, Jh, rr, hh, affine, curvature)
+    return Iterate(w, r, Jr, h, Jh, rr, hh, affine, curvature)
 
 
-def _evaluate_on_support(problem, w, r, Jr, affine, on_support) -> _Point | None:
-    """:func:`_evaluate` for a banded affine cost and equalities given as ``(h, support, Js, pairs)``
+def _evaluate_on_support(problem, w, r, Jr, affine, on_support) -> Iterate | None:
+    """:func:`evaluate_problem` for a banded affine cost and equalities given as ``(h, support, Js, pairs)``
     (``equalities_on_support``): ``2 Jh^T Jh`` goes straight to a SupportGram, no sparse Jh is
     built. None when the problem could not give its equalities that way (or has none)."""
     if on_support is None:
@@ -127,21 +147,21 @@ def _evaluate_on_support(problem, w, r, Jr, affine, on_support) -> _Point | None
     rr, hh = _finite_sumsq(r, h, w)
     JhJh = SupportGram(support, 2.0 * (Js.T @ Js), w.shape[0], pairs, Js)
     curvature = getattr(problem, "equality_curvature", None)
-    return _Point(w, r, Jr, h, None, rr, hh, affine, curvature, JhJh)
+    return Iterate(w, r, Jr, h, None, rr, hh, affine, curvature, JhJh)
 
 
 def _finite_sumsq(r: np.ndarray, h: np.ndarray, w: np.ndarray) -> tuple[float, float]:
     """``(r^T r, h^T h)``; raises a NumericalError naming the culprit when either is NaN or inf."""
-    rr = _sumsq(r)
-    hh = _sumsq(h)
+    rr = sumsq(r)
+    hh = sumsq(h)
     if not math.isfinite(rr):
-        raise _non_finite("residuals", w, "check the cost features (a division by zero or an overflow) and the start")
+        raise non_finite_error("residuals", w, "check the cost features (a division by zero or an overflow) and the start")
     if not math.isfinite(hh):
-        raise _non_finite("equalities", w, "check the constraint h(w, theta) and its domain")
+        raise non_finite_error("equalities", w, "check the constraint h(w, theta) and its domain")
     return rr, hh
 
 
-def _sumsq(v: np.ndarray) -> float:
+def sumsq(v: np.ndarray) -> float:
     """``v^T v`` for v: (k,); a Python loop for short vectors (cheaper than a numpy call)."""
     if v.shape[0] <= _SMALL:
         total = 0.0
@@ -151,8 +171,8 @@ def _sumsq(v: np.ndarray) -> float:
     return float(np.dot(v, v))
 
 
-def _dot(a: np.ndarray, b: np.ndarray) -> float:
-    """``a^T b`` for a, b: (k,), as :func:`_sumsq`."""
+def dot(a: np.ndarray, b: np.ndarray) -> float:
+    """``a^T b`` for a, b: (k,), as :func:`sumsq`."""
     if a.shape[0] <= _SMALL:
         total = 0.0
         for x, y in zip(a.tolist(), b.tolist()):
@@ -161,7 +181,7 @@ def _dot(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.dot(a, b))
 
 
-def _max_abs(h: np.ndarray) -> float:
+def max_abs(h: np.ndarray) -> float:
     """``max |h|`` (0 for an empty h)."""
     q = h.shape[0]
     if q <= _SMALL:
@@ -169,12 +189,12 @@ def _max_abs(h: np.ndarray) -> float:
     return float(np.maximum.reduce(np.abs(h)))
 
 
-def _max_diagonal(G) -> float:
+def max_diagonal(G) -> float:
     """Largest diagonal entry of a square G: ndarray, scipy.sparse, or for a tiny problem the
     packed 2 x 2 ``(G00, G01, G11)`` or nested list ``[[G00, G01], [G01, G11]]``; 0 when empty."""
     if type(G) is tuple:
         return G[0] if G[0] >= G[2] else G[2]
-    if type(G) is list:  # the nested 2 x 2 H that _gauss_newton returns for a tiny problem
+    if type(G) is list:  # the nested 2 x 2 H that gauss_newton returns for a tiny problem
         return G[0][0] if G[0][0] >= G[1][1] else G[1][1]
     diag = G.diagonal()
     if diag.shape[0] <= _SMALL:
@@ -182,7 +202,7 @@ def _max_diagonal(G) -> float:
     return float(np.maximum.reduce(diag))
 
 
-def _grams(pt: _Point) -> tuple:
+def compute_grams(pt: Iterate) -> tuple:
     """``(2 Jr^T r, 2 Jr^T Jr, 2 Jh^T Jh)`` at ``pt`` (the last is None without constraints).
 
     For tiny problems (:func:`_is_tiny`) Python floats: ``(g0, g1)`` and packed symmetric
@@ -230,24 +250,24 @@ def _grams(pt: _Point) -> tuple:
 def _is_tiny(Jr: np.ndarray, Jh: np.ndarray) -> bool:
     """Dense problems with n = 2 and at most 8 rows (the synthetic benchmark): Gauss-Newton on
     Python floats, since numpy's per-call overhead costs more than the arithmetic there, and the
-    2 x 2 trust-region step has a closed form (:func:`corl.trajectory.linalg.model_step`)."""
+    2 x 2 trust-region step has a closed form (:func:`corl.trajectory.solver.linalg.model_step`)."""
     return Jr.shape[1] == 2 and Jr.shape[0] + Jh.shape[0] <= 8
 
 
-def _lagrangian(pt: _Point, lam: np.ndarray, mu: float) -> tuple[float, float]:
+def lagrangian(pt: Iterate, lam: np.ndarray, mu: float) -> tuple[float, float]:
     """L_A = r^T r + lam^T h + mu h^T h, and the rounding noise of its evaluation."""
-    lin = _dot(lam, pt.h)
+    lin = dot(lam, pt.h)
     return pt.rr + lin + mu * pt.hh, NOISE * (pt.rr + abs(lin) + mu * pt.hh)
 
 
-def _gauss_newton(pt: _Point, lam: np.ndarray, mu: float) -> tuple[np.ndarray, Jacobian]:
+def gauss_newton(pt: Iterate, lam: np.ndarray, mu: float) -> tuple[np.ndarray, Jacobian]:
     """Gradient g (n,) and Gauss-Newton Hessian H (n, n) of L_A at ``pt``.
 
     For tiny dense problems (:func:`_is_tiny`) g is a list and H a nested 2 x 2 list of floats,
-    which :func:`corl.trajectory.linalg.model_step` takes as they are.
+    which :func:`corl.trajectory.solver.linalg.model_step` takes as they are.
     """
     # g = 2 Jr^T r + Jh^T (lam + 2 mu h);  H = 2 (Jr^T Jr + mu Jh^T Jh)  (second derivatives of r, h dropped)
-    g, H, JhJh = pt.grams or _grams(pt)
+    g, H, JhJh = pt.grams or compute_grams(pt)
     if type(H) is tuple:  # tiny dense problem: Python floats, H packed as (H00, H01, H11)
         g0, g1 = g
         if JhJh is not None:
@@ -281,7 +301,7 @@ def _gauss_newton(pt: _Point, lam: np.ndarray, mu: float) -> tuple[np.ndarray, J
     return g, H
 
 
-def _check_gradient(g: np.ndarray) -> None:
+def check_gradient(g: np.ndarray) -> None:
     """Raise a NumericalError naming the Jacobians when the gradient g (n,) is NaN or inf."""
     if not math.isfinite(float(np.dot(g, g))):
         raise NumericalError(

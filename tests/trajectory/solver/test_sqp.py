@@ -1,4 +1,4 @@
-"""SQP on banded trajectory problems (corl.trajectory.sqp): KKT of Eq. 8, the trust region, the
+"""SQP on banded trajectory problems (corl.trajectory.solver.sqp): KKT of Eq. 8, the trust region, the
 hand-over to the augmented Lagrangian, and iteration counts independent of the number of knots."""
 
 from __future__ import annotations

@@ -247,7 +247,7 @@ def banded_cholesky(
 
     When the factorization fails (H not positive definite), a jitter ladder of ``1e-12 .. 1e-4``
     times the mean diagonal is added, as in :func:`corl.numerics.cholesky`; ``ladder=False`` skips
-    the ladder (a caller that tests the inertia, as the SQP step of :mod:`corl.trajectory.kkt`).
+    the ladder (a caller that tests the inertia, as the SQP step of :mod:`corl.trajectory.solver.kkt`).
 
     Raises
     ------

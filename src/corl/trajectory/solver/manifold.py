@@ -35,7 +35,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from corl.trajectory.linalg import factorize_spd
+from corl.trajectory.solver.linalg import factorize_spd
 
 __all__ = ["ManifoldProjection", "project_on_manifold"]
 

@@ -11,7 +11,7 @@ import scipy.sparse as sp
 from scipy.optimize import minimize
 
 from corl.errors import InputError, NumericalError
-from corl.trajectory.linalg import factorize_spd, solve_spd, trust_region_step
+from corl.trajectory.solver.linalg import factorize_spd, solve_spd, trust_region_step
 from corl.trajectory.solver import FunctionProblem, SolverConfig, project, solve
 
 THETA0 = math.atan2(0.4, 0.3)
@@ -213,7 +213,8 @@ def test_restoration_reaches_the_tolerance_on_the_ball_from_a_stalled_point():
     (3.4e-10 with OpenBLAS's Haswell kernel on the test above, 4e-11 with SkylakeX): minimum-norm
     Newton steps on h, tangent to the ball, finish the job. Forced here on any machine by starting
     from a point on the ball that misses h = 0 by a few times the tolerance."""
-    from corl.trajectory.solver import _Run, _restore
+    from corl.trajectory.solver.al import restore
+    from corl.trajectory.solver.state import SolveState
 
     problem = RandomProblem(seed=3)
     center = project(problem, np.full(6, 0.5), config=SolverConfig.precise()).w
@@ -224,11 +225,11 @@ def test_restoration_reaches_the_tolerance_on_the_ball_from_a_stalled_point():
     w = reference + 2e-10 * tangent / np.linalg.norm(tangent)  # off h = 0 by a few 1e-10, along the ball
     w = center + (w - center) * (radius / np.linalg.norm(w - center))  # exactly on the ball
     config = SolverConfig.precise()
-    run = _Run(problem, config, center, radius)
-    start = run.evaluate(w)
+    state = SolveState(problem, config, center, radius)
+    start = state.evaluate(w)
     scale = 1.0 + float(np.max(np.abs(problem.equalities(w)[1]))) * np.linalg.norm(w)  # size of h's terms
     assert config.tol_constraint < start.err <= 10 * config.tol_constraint  # a stall, not a far miss
-    restored = _restore(run, start)
+    restored = restore(state, start)
     assert restored is not None
     assert restored.err <= config.tol_constraint
     assert restored.err <= 1e3 * np.finfo(float).eps * scale  # Newton on h converges to rounding level
@@ -237,12 +238,13 @@ def test_restoration_reaches_the_tolerance_on_the_ball_from_a_stalled_point():
 
 
 def test_restoration_declines_a_violation_far_above_the_tolerance():
-    from corl.trajectory.solver import _Run, _restore
+    from corl.trajectory.solver.al import restore
+    from corl.trajectory.solver.state import SolveState
 
     problem = RandomProblem(seed=3)
     w = np.full(6, 0.5)  # max|h| of order 1: genuinely infeasible at tol 1e-10, not a stall
-    run = _Run(problem, SolverConfig.precise(), None, np.inf)
-    assert _restore(run, run.evaluate(w)) is None
+    state = SolveState(problem, SolverConfig.precise(), None, np.inf)
+    assert restore(state, state.evaluate(w)) is None
 
 
 def test_start_outside_the_ball_is_moved_inside():
@@ -387,7 +389,7 @@ def test_small_dense_trust_region_step_matches_the_factorized_one(n):
 
 
 def test_model_step_reports_the_step_norm_and_model_decrease():
-    from corl.trajectory.linalg import model_step
+    from corl.trajectory.solver.linalg import model_step
 
     rng = np.random.default_rng(11)
     for n in (2, 4, 20):

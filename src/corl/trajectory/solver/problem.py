@@ -5,7 +5,7 @@
 :class:`SolverConfig` holds the tolerances and budgets (``SolverConfig()`` the defaults, and
 the named presets ``trajectory`` and ``precise``); :class:`SolveResult` and :class:`IterationRecord` report what
 :func:`~corl.trajectory.solver.solve` and :func:`~corl.trajectory.solver.project` did.
-This module knows nothing of the algorithm and imports nothing from :mod:`corl.trajectory.solver`.
+This module knows nothing of the algorithm and imports nothing else of the solver package.
 
 Glossary
 --------
@@ -38,7 +38,7 @@ __all__ = [
 
 Jacobian = Any  # np.ndarray or scipy.sparse matrix, (rows, n)
 
-_DAMPING_FLOOR = 1e-15  # smallest damping, relative to the largest diagonal entry of H
+DAMPING_FLOOR = 1e-15  # smallest damping, relative to the largest diagonal entry of H
 
 
 # ---------------------------------------------------------------------------------------------
@@ -95,7 +95,7 @@ class SolverMethod(str, Enum):
 
     AUGMENTED_LAGRANGIAN ("al") : multiplier updates around damped Gauss-Newton steps on L_A; any problem.
     SQP ("sqp") : Newton-KKT steps on ``h = 0`` with the Schur complement of a banded Hessian and a
-        merit line search (:mod:`corl.trajectory.sqp`), for problems with a banded affine cost
+        merit line search (:mod:`corl.trajectory.solver.sqp`), for problems with a banded affine cost
         (``affine_cost``) and equalities; other problems, and the few states where an SQP step is
         not available (rank-deficient ``dh/dw``, constraints out of reach of the ball), use the
         augmented Lagrangian.
@@ -176,9 +176,9 @@ class SolverConfig:
             raise InputError(
                 f"SolverConfig.mu_max is relative to the first penalty and must be >= 1, got {self.mu_max!r}"
             )
-        if not (_DAMPING_FLOOR <= self.damping_init < self.damping_max):
+        if not (DAMPING_FLOOR <= self.damping_init < self.damping_max):
             raise InputError(
-                f"SolverConfig needs {_DAMPING_FLOOR:g} <= damping_init < damping_max, "
+                f"SolverConfig needs {DAMPING_FLOOR:g} <= damping_init < damping_max, "
                 f"got damping_init={self.damping_init!r}, damping_max={self.damping_max!r}"
             )
 
