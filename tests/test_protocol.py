@@ -167,7 +167,8 @@ def test_the_old_name_projection_still_gives_h_with_a_warning():
     with pytest.warns(FutureWarning):
         assert constraint_of(old) == new.constraint
     with pytest.warns(FutureWarning):
-        assert constraint_violation(old, [1.0, 0.5], [0.2]) == pytest.approx(constraint_violation(new, [1.0, 0.5], [0.2]))
+        violation = constraint_violation(old, [1.0, 0.5], [0.2])
+    assert violation == pytest.approx(constraint_violation(new, [1.0, 0.5], [0.2]))
     assert constraint_of(new) == new.constraint  # the new name: no warning (pytest's -W error would fail here)
     with pytest.warns(FutureWarning):
         learner = CORL(old, lambda *args: None)  # checks h(w0, theta0)

@@ -31,9 +31,9 @@ from corl.errors import InputError
 from corl.numerics import as_vector
 
 __all__ = ["Bounds", "Outcome", "Proposal", "Demonstration", "Task", "check_theta", "HasMethodSettings",
-           "HasProjectionMetric", "HasTrajectoryProblem", "HasSpline", "Retimable", "HasPinnedTimes", "HasReference", "HasJointNames",
-           "HasThetaLabels", "RendersComparison", "REQUIRED_MEMBERS", "OPTIONAL_MEMBERS", "DEPRECATED_MEMBERS", "constraint_of", "check_task",
-           "check_reference"]
+           "HasTrajectoryProblem", "HasProjectionMetric", "HasSpline", "Retimable", "HasPinnedTimes", "HasReference",
+           "HasJointNames", "HasThetaLabels", "RendersComparison", "REQUIRED_MEMBERS", "OPTIONAL_MEMBERS",
+           "DEPRECATED_MEMBERS", "constraint_of", "check_task", "check_reference"]
 
 
 @dataclass(frozen=True)
@@ -295,7 +295,8 @@ class RendersComparison(Protocol):
 REQUIRED_MEMBERS = {"name": False, "theta_bounds": False, "w_bounds": False, "demonstration": True,
                     "cost_residuals": True, "constraint": True, "theta_of": True, "rollout": True}  # name: callable?
 OPTIONAL_MEMBERS = {"method_settings": (HasMethodSettings, True),
-                    "trajectory_problem": (HasTrajectoryProblem, True), "projection_metric": (HasProjectionMetric, False),
+                    "trajectory_problem": (HasTrajectoryProblem, True),
+                    "projection_metric": (HasProjectionMetric, False),
                     "spline": (HasSpline, False), "retimed": (Retimable, True),
                     "pinned_times": (HasPinnedTimes, False), "reference": (HasReference, True),
                     "joint_names": (HasJointNames, False), "theta_labels": (HasThetaLabels, False),

@@ -66,7 +66,8 @@ _CONVERGED, _APPROXIMATE, _STALLED, _BUDGET = (InnerStatus.CONVERGED, InnerStatu
                                                InnerStatus.BUDGET)
 
 
-def minimize_lagrangian(state: SolveState, pt: Iterate, lam: np.ndarray, mu: float, rtol: float) -> tuple[Iterate, str]:
+def minimize_lagrangian(state: SolveState, pt: Iterate, lam: np.ndarray, mu: float,
+                        rtol: float) -> tuple[Iterate, str]:
     """Inner loop: damped Gauss-Newton on L_A inside the ball, from ``pt`` until the step is small.
 
     The step is small when ``||d|| <= tol_step (1 + ||w||)``, or, with ``rtol > 0`` (an inexact
@@ -234,11 +235,7 @@ def restore(state: SolveState, pt: Iterate) -> Iterate | None:
 
 
 def _infeasible_status(pt: Iterate, state: SolveState, error: float, mu: float, stuck: bool) -> str:
-    where = ""
-    if state.center is not None:
-        offset = pt.w - state.center
-        if math.sqrt(sumsq(offset)) >= state.radius * (1 - 1e-9):
-            where = f" inside the trust region of radius {state.radius:g} (active)"
+    where = f" inside the trust region of radius {state.radius:g} (active)" if state.on_boundary(pt.w) else ""
     why = (
         "w stopped moving (a local minimum of ||h||^2, or a point where dh/dw degenerates)"
         if stuck
