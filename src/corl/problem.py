@@ -190,7 +190,7 @@ class Task(Protocol):
     def constraint(self, w: np.ndarray, theta: np.ndarray) -> tuple[np.ndarray, Any]:
         """The constraint ``h(w, theta)`` (q,) and its Jacobian ``dh/dw`` (q, n) (Eq. 2, Eq. 6).
 
-        Named ``projection`` before version 0.2; a task that still has ``projection`` and no
+        Formerly named ``projection``; a task that still has ``projection`` and no
         ``constraint`` works, with a FutureWarning (:func:`constraint_of`)."""
 
     def theta_of(self, w: np.ndarray) -> np.ndarray:
