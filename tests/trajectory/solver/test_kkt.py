@@ -120,6 +120,55 @@ def test_ball_step_with_an_indefinite_hessian_uses_a_definite_shift():
     assert np.linalg.eigvalsh(H + nu * np.eye(N))[0] > 0.0
 
 
+def test_the_definite_shift_is_computed_only_when_the_first_shifts_fail():
+    Hb, H = banded_hessian(9, shift=0.05)  # definite: no shift needed
+    support, Js, Jh = constraint_rows(10)
+    rng = np.random.default_rng(11)
+    g, h, u = rng.normal(size=N), np.zeros(3), np.zeros(N)
+    calls = []
+
+    def shift():
+        calls.append(1)
+        return 3.0
+
+    d, lam, z, nu = constrained_step(Hb, g, support, Js, h, u, 0.5, nu_definite=shift)
+    assert calls == []
+    _assert_ball_step_is_optimal(H, Jh, g, h, u, 0.5, d, lam, z, nu)
+    C = np.zeros((N, N))
+    C[20:24, 20:24] = -3.0 * np.eye(4)
+    indefinite = BandedSPD.from_sparse(sp.csr_matrix(H + C), 2)
+    d, lam, z, nu = constrained_step(indefinite, g, support, Js, h, u, 0.5, nu_definite=lambda: 3.0 + 1e-6)
+    _assert_ball_step_is_optimal(H + C, Jh, g, h, u, 0.5, d, lam, z, nu)
+
+
+def test_ball_iteration_stops_when_rounding_keeps_it_off_the_tolerance(monkeypatch):
+    """With a tolerance no floating-point step can meet, the Newton iteration on the ball multiplier
+    stops once it no longer gets closer (a few steps), not after _SECULAR_MAX_ITER factorizations,
+    and returns the closest step it found, on the ball to rounding."""
+    import corl.trajectory.solver.kkt as kkt
+
+    Hb, H = banded_hessian(6, shift=0.05)
+    support, Js, Jh = constraint_rows(7)
+    rng = np.random.default_rng(8)
+    g, h = 10.0 * rng.normal(size=N), 0.01 * rng.normal(size=3)
+    u = rng.normal(size=N)
+    radius = 1.5 * np.linalg.norm(u)
+    reference = constrained_step(Hb, g, support, Js, h, u, radius)
+    monkeypatch.setattr(kkt, "_SECULAR_TOL", 0.0)
+    built = []
+    original = kkt.KKTSystem.__init__
+
+    def counting(self, *args, **kwargs):
+        built.append(1)
+        original(self, *args, **kwargs)
+
+    monkeypatch.setattr(kkt.KKTSystem, "__init__", counting)
+    d, lam, z, nu = constrained_step(Hb, g, support, Js, h, u, radius)
+    assert len(built) < kkt._SECULAR_MAX_ITER // 2
+    _assert_ball_step_is_optimal(H, Jh, g, h, u, radius, d, lam, z, nu)
+    np.testing.assert_allclose(d, reference[0], atol=1e-10 * np.linalg.norm(reference[0]))
+
+
 def test_linearized_constraints_out_of_the_ball_raise_unreachable():
     Hb, _ = banded_hessian(12, shift=0.1)
     support, Js, _ = constraint_rows(13)

@@ -47,6 +47,7 @@ L, W, S  : banded Cholesky factor of ``H + nu I``, ``L^{-1} Jh^T`` (n, q), Schur
 from __future__ import annotations
 
 import math
+from typing import Callable
 
 import numpy as np
 from scipy.linalg.lapack import dpotrf, dpotrs, dtbtrs
@@ -61,6 +62,7 @@ _SECULAR_TOL = 1e-12  # relative accuracy of ||z|| = radius, as corl.trajectory.
 _SECULAR_MAX_ITER = 50
 _REACH_MARGIN = 1e-6  # the ball must leave this fraction of radius^2 to the null-space part of the step
 _MAX_INDEFINITE = 2  # indefinite shifts met in the ball iteration before it gives up (the hard case)
+_STALL_LIMIT = 2  # Newton steps on nu without getting closer to ||z|| = radius before the ball iteration stops
 
 
 class StepFailure(Exception):
@@ -173,7 +175,7 @@ def constrained_step(
     u: np.ndarray | None = None,
     radius: float = math.inf,
     *,
-    nu_definite: float = 0.0,
+    nu_definite: float | Callable[[], float] = 0.0,
     nu_guess: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, float]:
     """Solve ``min g^T d + d^T H d / 2  s.t.  Jh d = -h,  ||u + d|| <= radius`` (see the module docstring).
@@ -184,7 +186,8 @@ def constrained_step(
     u : (n,) offset of the current point from the ball's center, or None for no ball.
     radius : the ball's radius (ignored when ``u`` is None).
     nu_definite : a shift that makes ``H + nu I`` positive definite (e.g. minus the smallest
-        eigenvalue of the constraint curvature in H), tried when H itself is indefinite: with a
+        eigenvalue of the constraint curvature in H), or a callable that computes it (called only
+        when needed), tried when neither ``nu_guess`` nor 0 makes H definite: with a
         ball the step is then its boundary point at a multiplier where ``H + nu I`` is definite
         (More & Sorensen); when there is none (the hard case) IndefiniteHessian is raised.
     nu_guess : a first guess of the ball's multiplier (the previous iterate's), tried first.
@@ -206,10 +209,13 @@ def constrained_step(
         d, lam = KKTSystem(H, 0.0, support, Js).solve(g, h)
         return d, lam, None, 0.0
     # A first definite shift: the guess, else 0 (no ball), else nu_definite; lo: the largest indefinite one.
-    lo, kkt, failed = 0.0, None, False
-    for nu in sorted({nu_guess, 0.0, nu_definite}, key=lambda x: (x != nu_guess, x)):
-        if failed and nu <= lo:  # less definite than a shift that failed
+    lo, kkt, failed, tried = 0.0, None, False, set()
+    for nu in (nu_guess, 0.0, nu_definite):
+        if callable(nu):  # the definite shift costs an eigen-decomposition: only when the first two failed
+            nu = float(nu())
+        if nu in tried or (failed and nu <= lo):  # tried, or less definite than a shift that failed
             continue
+        tried.add(nu)
         try:
             kkt = KKTSystem(H, nu, support, Js)
             break
@@ -261,10 +267,23 @@ def _boundary_step(H, g, support, Js, h, u, radius, zmin_sq, nu, kkt, z, lam, lo
     zero = np.zeros(h.shape[0])
     hi, indefinite = math.inf, 0
     zz = float(np.dot(z, z))
+    best = (math.inf, z, lam, nu)  # (| ||z|| - radius |, z, lam, nu) of the closest point so far
+    stalled = 0
     for _ in range(_SECULAR_MAX_ITER):
         zn = math.sqrt(zz)
-        if abs(zn - radius) <= _SECULAR_TOL * radius:
+        miss = abs(zn - radius)
+        if miss <= _SECULAR_TOL * radius:
             break
+        # Near the root, rounding in the KKT solves can keep ||z|| a few ulps of the tolerance away
+        # while nu no longer moves: stop after _STALL_LIMIT Newton steps that did not get closer.
+        if miss < best[0]:
+            best, stalled = (miss, z, lam, nu), 0
+        else:
+            stalled += 1
+            if stalled >= _STALL_LIMIT:
+                _, z, lam, nu = best
+                zz = float(np.dot(z, z))
+                break
         if zn > radius:
             lo = nu
         else:

@@ -74,16 +74,20 @@ def sqp_applies(pt: Iterate, config: SolverConfig) -> bool:
 
 
 class KKTModel:
-    """The KKT model at one iterate: ``H`` (banded), ``g``, ``gJ`` and the constraint Jacobian's support."""
+    """The KKT model at one iterate: ``H`` (banded), ``g``, ``gJ`` and the constraint Jacobian's support.
 
-    __slots__ = ("H", "g", "gJ", "support", "Js", "nu_definite")
+    ``curvature_block`` is the dense block of ``sum_i lam_i d2h_i`` on its columns (or None);
+    :meth:`nu_definite` derives from it, when a ball step asks, a shift that makes ``H`` definite.
+    """
+
+    __slots__ = ("H", "g", "gJ", "support", "Js", "curvature_block")
 
     def __init__(self, pt: Iterate, lam: np.ndarray, mu: float, curvature: bool, ball: bool) -> None:
         H_J, _ = pt.affine
         gJ, _, gram = pt.grams or compute_grams(pt)  # gJ = H_J w - c; gram = 2 Jh^T Jh with Js = Jh[:, support]
         self.support, self.Js, self.gJ = gram.support, gram.Js, gJ
         self.H = (mu * gram).added_to(H_J)  # H_J + 2 mu Jh^T Jh, a new banded matrix
-        self.nu_definite = 0.0  # a shift that makes H definite (H_J + 2 mu Jh^T Jh is semi-definite)
+        self.curvature_block = None
         if curvature and pt.curvature is not None and np.any(lam):  # + sum_i lam_i d2h_i (Newton)
             C = pt.curvature(pt.w, lam)
             if C is not None:
@@ -91,11 +95,18 @@ class KKTModel:
                     raise StepFailure("the constraint curvature is no SupportGram; it cannot join the banded Hessian")
                 if not C.add_into(self.H):
                     self.H = C.added_to(self.H)
-                lowest = float(np.linalg.eigvalsh(C.G)[0]) if ball and C.G.shape[0] else 0.0
-                if lowest < 0.0:  # only a ball step uses it
-                    self.nu_definite = -lowest * (1.0 + 1e-6) + 1e-12 * max_diagonal(self.H)
+                self.curvature_block = C.G if ball and C.G.shape[0] else None  # only a ball step uses it
         self.g = gJ.copy()
         self.g[self.support] += (2.0 * mu) * np.dot(pt.h, self.Js)  # + 2 mu Jh^T h
+
+    def nu_definite(self) -> float:
+        """A shift that makes ``H + nu I`` definite: ``H_J + 2 mu Jh^T Jh`` is semi-definite, so minus
+        the lowest eigenvalue of the curvature block (0 when it has none below 0). One ``eigvalsh``
+        of the block, computed only when the ball step needs it (H indefinite at the first shifts)."""
+        if self.curvature_block is None:
+            return 0.0
+        lowest = float(np.linalg.eigvalsh(self.curvature_block)[0])
+        return -lowest * (1.0 + 1e-6) + 1e-12 * max_diagonal(self.H) if lowest < 0.0 else 0.0
 
 
 def _step(pt: Iterate, lam: np.ndarray, mu: float, mu_max: float, u, radius: float, nu_guess: float, newton: bool):
