@@ -334,13 +334,11 @@ def check_task(task, source: str = "the task") -> Task:
         raise InputError(f"{where} is not a task: it lacks {', '.join(missing)}; "
                          "add them (see corl.problem.Task and the README's task protocol)")
     for member, is_method in REQUIRED_MEMBERS.items():
-        if member == "constraint":
-            constraint_of(task)  # warns once here when the task still calls it projection
-        value = getattr(task, member, None)
-        if member == "constraint" and value is None:
-            member, value = "projection", getattr(task, "projection", None)
-        if is_method and not callable(value):
+        if not hasattr(task, member):  # present under its deprecated name (checked above)
+            member = next(old for old, new in DEPRECATED_MEMBERS.items() if new == member)
+        if is_method and not callable(getattr(task, member)):
             raise InputError(f"{where}: '{member}' must be a method (see corl.problem.Task)")
+    constraint_of(task)  # warns here, before any rollout, when the task still calls h projection
     if not isinstance(task.theta_bounds, Bounds):
         raise InputError(f"{where}: theta_bounds must be a corl.problem.Bounds, got {type(task.theta_bounds).__name__}")
     if task.w_bounds is not None and not isinstance(task.w_bounds, Bounds):
