@@ -81,6 +81,28 @@ def test_short_learning_run_improves_J_and_keeps_success(task):
     assert all(np.linalg.norm(b.w - a.w) <= 0.1 + 1e-9 for (a, _), (b, _) in zip(learner.history, learner.history[1:]))
 
 
+def test_trajectory_problem_is_the_tasks_J_and_h_and_step_one_runs_on_sqp(task):
+    from corl.realise import motion_problem
+    from corl.tasks.door.task import EPS_MAX
+    from corl.trajectory.solver import solve
+
+    demo = task.demonstration()
+    theta = np.array([0.03, 0.014])
+    problem = motion_problem(task, theta)
+    assert problem is task.trajectory_problem(theta)  # cached per theta
+    w = demo.w + 1e-3 * np.random.default_rng(1).standard_normal(demo.w.shape)
+    r, _ = problem.residuals(w)
+    h, Jh = problem.equalities(w)
+    h_task, Jh_task = task.constraint(w, theta)
+    np.testing.assert_array_equal(r, task.cost_residuals(w)[0])
+    np.testing.assert_array_equal(h, h_task)
+    assert abs(Jh - Jh_task).max() == 0.0
+    result = solve(motion_problem(task, demo.theta), demo.w, radius=EPS_MAX)  # Alg. 1, step 1 (Eq. 8)
+    assert result.converged and result.status.startswith("converged (SQP)"), result.status
+    assert result.constraint_error < 1e-10 and result.cost < 0.9 * problem.cost(demo.w)
+    assert np.linalg.norm(result.w - demo.w) <= EPS_MAX * (1 + 1e-12)
+
+
 def test_force_noise_is_seeded_and_repeatable(task):
     from corl.errors import InputError
     from corl.tasks.door.task import FORCE_REFERENCE, DoorTask
