@@ -277,7 +277,9 @@ def retime(spline: BSpline, w, p, *, equalities=None, config: PhaseConfig = Phas
 
     Samples the re-timed path at ``fit_samples_per_point * P`` times, fits the B-spline by least
     squares (:meth:`BSpline.fit`), and, when ``equalities`` (a callable ``w -> (h, dh/dw)`` or a
-    problem) are given, projects the fit onto ``h = 0`` (Eq. 18) so the contacts still hold.
+    problem) are given, projects the fit onto ``h = 0`` (Eq. 18, :func:`~corl.trajectory.solver.project`)
+    so the contacts still hold: by SQP for a :class:`~corl.trajectory.features.TrajectoryProblem`,
+    along the constraint manifold for a callable.
     """
     p = np.asarray(p, dtype=float)
     K = p.shape[0] - 1
