@@ -20,12 +20,15 @@ from corl.errors import InputError
 from corl.learner import CORL, CORLConfig
 from corl.optimizers.bo import BOConfig, PIBUOptimizer, StopRule, UCBOptimizer
 from corl.optimizers.cmaes import CMAES, CMAESConfig
-from corl.optimizers.gpconfig import SYNTHETIC_CLASSIFIER, SYNTHETIC_REGRESSION, ClassifierConfig, RegressionConfig
+from corl.optimizers.gpconfig import (
+    FITTED_CLASSIFIER, FITTED_REGRESSION, SYNTHETIC_CLASSIFIER, SYNTHETIC_REGRESSION, ClassifierConfig, RegressionConfig,
+)
 from corl.optimizers.power import PoWER, PoWERConfig
+from corl.optimizers.safe import SAFE_BO_CONFIG, SafeBOOptimizer
 from corl.optimizers.sal import SALConfig, SALOptimizer
 from corl.problem import Task
 
-__all__ = ["MethodSettings", "METHODS", "PAPER_FIG1", "make_method"]
+__all__ = ["MethodSettings", "METHODS", "PAPER_FIG1", "DEFAULT_METHOD", "USER_SETTINGS", "make_method"]
 
 PAPER_FIG1 = {  # found/100, failures mean, std, max distance mean, std
     "PIBU": (100, 8.49, 1.35, 0.71, 0.44),
@@ -37,7 +40,10 @@ PAPER_FIG1 = {  # found/100, failures mean, std, max distance mean, std
     "CORL+CMA": (85, 2.98, 2.58, 1.26, 1.15),
     "CORL+SAL": (99, 1.74, 0.56, 0.06, 0.11),
 }
-METHODS = tuple(PAPER_FIG1) + ("CORL+PIBU(literal)",)
+METHODS = tuple(PAPER_FIG1) + ("CORL+PIBU(literal)", "CORL")
+#: ``CORL``: the default for a user's task -- Alg. 1 with safe BO by SEIB on GPs fitted from the
+#: data (corl.optimizers.safe); not a row of Fig. 1.
+DEFAULT_METHOD = "CORL"
 
 
 @dataclass(frozen=True)
@@ -62,11 +68,18 @@ class MethodSettings:
                         distance_scale=self.theta_scale)
 
 
+#: A user's task (one without ``method_settings()``): GP hyperparameters learned from the data.
+USER_SETTINGS = MethodSettings(regression=FITTED_REGRESSION, classifier=FITTED_CLASSIFIER)
+
+
 def _factory(name: str, s: MethodSettings) -> Callable:
     """``(bounds, x0, rng) -> BlackBoxOptimizer`` for the black-box part of a method."""
     eps_theta = s.corl.eps_theta
     if name == "PIBU":
         return lambda b, x0, rng, n: PIBUOptimizer(b, s.bo(), max_evals=n, seed=rng)
+    if name == "SEIB":  # the CORL default; its GPs follow the settings (fitted for user tasks)
+        cfg = replace(SAFE_BO_CONFIG, regression=s.regression, classifier=s.classifier)
+        return lambda b, x0, rng, n: SafeBOOptimizer(b, cfg, max_evals=n, seed=rng)
     if name == "PIBU(budget)":  # over w: the 1e-3 stopping rule fires before the optimum is pinned down
         return lambda b, x0, rng, n: PIBUOptimizer(b, s.bo(StopRule.BUDGET), max_evals=n, seed=rng)
     if name == "PIBU(literal)":
@@ -90,13 +103,18 @@ def make_method(name: str, task: Task, *, seed: int = 0, settings: MethodSetting
     """Build the learner called ``name`` (a Fig. 1 row) for ``task``; it speaks ask/tell/run.
 
     ``settings`` default to the task's own (``task.method_settings()``, e.g. the door's
-    hyperparameters from Sec. VIII-B) or, for tasks without them, the synthetic benchmark's.
+    hyperparameters from Sec. VIII-B), the paper's synthetic values for the synthetic task, or,
+    for a user's task, :data:`USER_SETTINGS` (hyperparameters fitted from the data).
+    ``"CORL"`` is Alg. 1 with SEIB (:data:`DEFAULT_METHOD`).
     """
     if settings is None:
         preset = getattr(task, "method_settings", None)
-        settings = preset() if callable(preset) else MethodSettings()
-    if name.startswith("CORL+"):
-        inner = _factory(name[len("CORL+"):], settings)
+        if callable(preset):
+            settings = preset()
+        else:
+            settings = MethodSettings() if getattr(task, "name", None) == "synthetic" else USER_SETTINGS
+    if name == "CORL" or name.startswith("CORL+"):
+        inner = _factory("SEIB" if name == "CORL" else name[len("CORL+"):], settings)
         budget = settings.corl.max_rl_trials if settings.rl_budget is None else settings.rl_budget
         corl_cfg = replace(settings.corl, max_rl_trials=budget)
         return CORL(task, lambda b, x0, rng: inner(b, x0, rng, budget), corl_cfg, seed=seed)

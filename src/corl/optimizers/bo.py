@@ -16,7 +16,7 @@ import numpy as np
 from corl.acquisition import PIBU, MaximizerConfig, PIBUConfig, PIBUVariant, maximize, upper_confidence_bound
 from corl.errors import InputError
 from corl.optimizers.base import BlackBoxOptimizer
-from corl.optimizers.gpconfig import ClassifierConfig, RegressionConfig
+from corl.optimizers.gpconfig import ClassifierConfig, ModelFitter, RegressionConfig
 from corl.problem import Bounds
 
 __all__ = ["PIBUOptimizer", "UCBOptimizer", "StopRule", "BOConfig"]
@@ -69,6 +69,7 @@ class _BayesOpt(BlackBoxOptimizer):
         self.config = config
         self.rng = np.random.default_rng(seed)
         self.last_acquisition = None  # the acquisition of the latest ask, for plots
+        self.models = ModelFitter(config.regression, config.classifier, bounds)  # fixed or fitted GPs
 
     def _propose(self) -> np.ndarray | None:
         acq = self._acquisition()
@@ -108,10 +109,10 @@ class PIBUOptimizer(_BayesOpt):
     def _acquisition(self):
         if len(self.X_) == 0:
             return None
-        classifier = self.config.classifier.build().fit(self.X_, self.success_)
+        classifier = self.models.classifier(self.X_, self.success_)
         ok = self.success_ & np.isfinite(self.returns_)
         if np.any(ok):
-            regression = self.config.regression.build().fit(self.X_[ok], self.returns_[ok])
+            regression = self.models.regression(self.X_[ok], self.returns_[ok])
             best = float(np.max(self.returns_[ok]))
         else:
             regression, best = None, 0.0
@@ -138,7 +139,7 @@ class UCBOptimizer(_BayesOpt):
             return None
         y = np.where(self.success_, self.returns_, self.failure_return)
         y = np.where(np.isfinite(y), y, self.failure_return)
-        gp = self.config.regression.build().fit(self.X_, y)
+        gp = self.models.regression(self.X_, y)
         kappa = self.kappa
 
         def ucb(X):
