@@ -233,7 +233,7 @@ def botorch_step(b: Bounds, X, s, r, seed: int):
                                             constraints={1: (0.0, None)})
     m = b.dim
     box = torch.stack([torch.zeros(m), torch.ones(m)]).double()
-    cand, _ = optimize_acqf(acq, bounds=box, q=1, num_restarts=8, raw_samples=256)
+    cand, _ = optimize_acqf(acq, bounds=box, q=1, num_restarts=4, raw_samples=128)
     return b.from_unit(cand.detach().numpy().reshape(m))
 
 
@@ -250,7 +250,12 @@ def run_botorch(p, start, budget, seed):
 
 
 _SAFEOPT_WORKER = r'''
-import json, sys, time, numpy as np, GPy, safeopt
+import collections, collections.abc, json, sys, time
+for _n in ("Sequence", "Iterable", "Mapping"):  # safeopt 0.16 predates Python 3.10
+    setattr(collections, _n, getattr(collections.abc, _n))
+import numpy as np
+np.float, np.int, np.bool = float, int, bool  # ... and numpy 1.24
+import GPy, safeopt
 for line in sys.stdin:
     job = json.loads(line)
     m, budget, start, n = job["m"], job["budget"], np.array(job["start"]), job["grid"]
@@ -355,7 +360,8 @@ def main(argv=None) -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--methods", default="CORL,PIBU,PIBU(l=w/10),BoTorch,SafeOpt")
     ap.add_argument("--problems", default=None, help="comma-separated names (default all)")
-    ap.add_argument("--safeopt-python", default=os.environ.get("CORL_SAFEOPT_PYTHON"),
+    local = Path(__file__).resolve().parents[1] / ".venv-safeopt" / "bin" / "python"
+    ap.add_argument("--safeopt-python", default=os.environ.get("CORL_SAFEOPT_PYTHON", str(local)),
                     help="an interpreter with safeopt installed (default $CORL_SAFEOPT_PYTHON)")
     ap.add_argument("--speed", action="store_true", help="also time one iteration at 100 points in 2-D")
     ap.add_argument("--json", default=None, help="write every run's numbers here")

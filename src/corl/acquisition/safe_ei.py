@@ -19,7 +19,11 @@ with ``V = sqrt(V_gS) / sf`` (PIBU's normalised boundary uncertainty, Eq. 17's s
 * EI with a margin xi (a fraction of the spread of observed returns) is ~0 beside the best
   point, so the method moves on instead of stalling (PI's failure mode) and stops when
   ``max a < stop_value`` -- nothing left that is both plausible and safe;
-* points are only proposed where ``p >= p_band``, so every failure lies in the boundary band.
+* points are only proposed where ``p >= p_band``, so every failure lies in the boundary band;
+* when the gated ``a`` has nothing left (``max a < stop_value``) the optimizer tries once more
+  with the gate open (``gated=False``): a return model fitted on a few clustered points can be
+  wrong about an unexplored edge, and stopping there would strand the search (it stops only
+  when the ungated boundary term is exhausted too).
 
 Glossary
 --------
@@ -58,8 +62,8 @@ def expected_improvement(mu, var, threshold: float) -> np.ndarray:
 class SEIBConfig:
     """Settings of SEIB; the defaults were chosen on the safe-BO suite's training problems."""
 
-    p_inner: float = 0.55  # inner region: p >= p_inner (PIBU's inner threshold)
-    p_band: float = 0.45  # lowest p ever proposed: the boundary band is [p_band, p_inner)
+    p_inner: float = 0.7  # inner region: p >= p_inner (PIBU: 0.55)
+    p_band: float = 0.55  # lowest p ever proposed: the boundary band is [p_band, p_inner) (PIBU: 0.45)
     xi_rel: float = 0.01  # improvement margin as a fraction of the returns' spread
     beta: float = 2.0  # UCB_R width that gates the boundary term
     boundary_weight: float = 0.1  # w_b: weight of V on a gated stretch of the boundary
@@ -83,14 +87,18 @@ class SEIB:
     best_return : R^+.
     scale : spread of the returns (> 0).
     config : :class:`SEIBConfig`.
+    gated : gate the boundary term by ``UCB_R > R^+ + xi``; ``False`` gives the ungated boundary
+        term (PIBU's, weighted by ``w_b``), which the optimizer falls back to when the gated
+        acquisition has nothing left: the return model may be wrong about an unexplored edge.
     """
 
     def __init__(self, regression, classifier, best_return: float, scale: float,
-                 config: SEIBConfig = SEIBConfig()) -> None:
+                 config: SEIBConfig = SEIBConfig(), *, gated: bool = True) -> None:
         if not (np.isfinite(scale) and scale > 0):
             raise InputError(f"scale must be positive and finite, got {scale}")
         self.regression, self.classifier = regression, classifier
         self.best_return, self.scale, self.config = float(best_return), float(scale), config
+        self.gated = bool(gated)
 
     def parts(self, X: np.ndarray) -> dict[str, np.ndarray]:
         """Every term at candidates ``X`` (s, m): value, ei, ucb_gate, boundary, inner, band, proba."""
@@ -107,6 +115,8 @@ class SEIB:
             mu, var = self.regression.predict(X)
             ei = expected_improvement(mu, var, self.best_return + xi) / self.scale  # EI with margin xi
             gate = mu + cfg.beta * np.sqrt(var) > self.best_return + xi  # UCB_R above R^+ + xi
+            if not self.gated:
+                gate = np.ones(len(X), dtype=bool)
         edge = np.where(band & gate, np.maximum(ei, cfg.boundary_weight * boundary), 0.0)
         value = np.where(inner, ei, 0.0) + edge
         return {"value": value, "ei": ei, "ucb_gate": gate, "boundary": boundary, "inner": inner,

@@ -75,7 +75,7 @@ class RegressionPriors:
 class ClassifierPriors:
     """Priors of g_S's kernel in the unit box (latent units); the prior mean stays fixed."""
 
-    lengthscale: HyperPrior = HyperPrior(0.2, 0.75, 0.03, 3.0)
+    lengthscale: HyperPrior = HyperPrior(0.1, 0.75, 0.03, 3.0)  # short: small first steps into the unknown
     signal_std: HyperPrior = HyperPrior(10.0, 0.5, 2.0, 50.0)
     max_iter: int = 20
 
