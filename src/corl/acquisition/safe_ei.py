@@ -20,10 +20,10 @@ with ``V = sqrt(V_gS) / sf`` (PIBU's normalised boundary uncertainty, Eq. 17's s
   point, so the method moves on instead of stalling (PI's failure mode) and stops when
   ``max a < stop_value`` -- nothing left that is both plausible and safe;
 * points are only proposed where ``p >= p_band``, so every failure lies in the boundary band;
-* when the gated ``a`` has nothing left (``max a < stop_value``) the optimizer tries once more
-  with the gate open (``gated=False``): a return model fitted on a few clustered points can be
-  wrong about an unexplored edge, and stopping there would strand the search (it stops only
-  when the ungated boundary term is exhausted too).
+* when the gated ``a`` has nothing left (``max a < stop_value``) while there are fewer than
+  ``trust_per_dim * m`` successes, the optimizer tries once more with the gate open
+  (``gated=False``): a return model fitted on a few clustered points (e.g. along a level set of
+  R) can be wrong about every unexplored edge, and stopping there would strand the search.
 
 Glossary
 --------
@@ -68,11 +68,12 @@ class SEIBConfig:
     beta: float = 2.0  # UCB_R width that gates the boundary term
     boundary_weight: float = 0.1  # w_b: weight of V on a gated stretch of the boundary
     stop_value: float = 1e-4  # stop when max a < stop_value (EI in units of the spread)
+    trust_per_dim: int = 5  # the gate may stop the search once there are trust_per_dim * m successes
 
     def __post_init__(self) -> None:
         if not 0.0 < self.p_band <= self.p_inner < 1.0:
             raise InputError(f"SEIB needs 0 < p_band <= p_inner < 1, got {self.p_band}, {self.p_inner}")
-        if min(self.xi_rel, self.beta, self.boundary_weight, self.stop_value) < 0:
+        if min(self.xi_rel, self.beta, self.boundary_weight, self.stop_value, self.trust_per_dim) < 0:
             raise InputError("xi_rel, beta, boundary_weight and stop_value must be >= 0")
 
 

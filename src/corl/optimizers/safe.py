@@ -3,8 +3,8 @@
 :class:`SafeBOOptimizer` fits g_S on every point and g_R on the successes (MAP hyperparameters
 in unit-box units, :mod:`corl.gp.fitting`, warm-started from the previous ask), maximises SEIB
 (:mod:`corl.acquisition.safe_ei`) and stops when nothing is left that is both plausible and safe
-(``max a < stop_value``, also with the boundary gate open) or the maximiser lands on a sampled
-point. It needs one known success
+(``max a < stop_value``; with few successes also with the boundary gate open) or the
+maximiser lands on a sampled point. It needs one known success
 (the start) before its first ask: a safe method never guesses a first point.
 """
 
@@ -63,7 +63,8 @@ class SafeBOOptimizer(_BayesOpt):
         acq = self._acquisition()
         self.last_acquisition = acq
         x, value = maximize(acq, self.bounds, rng=self.rng, config=self.config.maximizer, extra=self.X_)
-        if not value >= self.seib.stop_value:  # nothing plausible left: open the gate on the boundary
+        few = np.sum(self.success_) < self.seib.trust_per_dim * self.bounds.dim
+        if few and not value >= self.seib.stop_value:  # too few successes to trust the gate: open it
             acq = SEIB(acq.regression, acq.classifier, acq.best_return, acq.scale, self.seib, gated=False)
             self.last_acquisition = acq
             x, value = maximize(acq, self.bounds, rng=self.rng, config=self.config.maximizer, extra=self.X_)
