@@ -260,6 +260,7 @@ for line in sys.stdin:
     job = json.loads(line)
     m, budget, start, n = job["m"], job["budget"], np.array(job["start"]), job["grid"]
     grid = safeopt.linearly_spaced_combinations([(0.0, 1.0)] * m, [n] * m)
+    grid = np.vstack([grid, start[None]])  # the start is safe: SafeOpt's set must contain it
     r0 = job["r0"]; scale = abs(r0) if r0 else 1.0
     kf = GPy.kern.RBF(m, variance=1.0, lengthscale=0.2, ARD=False)
     kc = GPy.kern.RBF(m, variance=1.0, lengthscale=0.1, ARD=False)
