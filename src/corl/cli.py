@@ -237,7 +237,8 @@ def _open_store(path: Path, *, readonly: bool = False, create: bool = True):
 @app.command("run")
 def run(
     task: str = typer.Argument(..., help="'synthetic', or an import path 'package.module:make_task'"),
-    method: Optional[str] = typer.Option(None, help="method name, a row of Fig. 1 (default CORL+PIBU)"),
+    method: Optional[str] = typer.Option(None, help="method name: CORL or a row of Fig. 1 (default: CORL+PIBU for "
+                                                     "the built-in tasks, CORL for your own)"),
     seed: Optional[int] = typer.Option(None, help="seed (default 0)"),
     out: Path = typer.Option(Path("results/run"), help="output folder for summary.json"),
     store: Optional[Path] = typer.Option(None, help="run store (default OUT/run.corl)"),
@@ -252,10 +253,10 @@ def run(
     import time
 
     from corl.errors import CorlError
-    from corl.experiments.methods import METHODS
+    from corl.experiments.methods import DEFAULT_METHOD, METHODS
     from corl.experiments.summary import run_summary, run_text, task_extras
     from corl.session import StoredRun
-    from corl.tasks.registry import load_task
+    from corl.tasks.registry import BUILTIN_TASKS, load_task
 
     store_path = store or out / "run.corl"
     _check(task=("TASK", task), seed=("--seed", seed), folder=("--out", out), store=("--store", store_path))
@@ -287,7 +288,7 @@ def run(
                     the_task = load_task(task, seed=seed)
                 session = StoredRun.open(db, the_task, info.id)
             else:
-                method = method or "CORL+PIBU"
+                method = method or ("CORL+PIBU" if task in BUILTIN_TASKS else DEFAULT_METHOD)
                 seed = 0 if seed is None else seed
                 if seed != task_seed:
                     the_task = load_task(task, seed=seed)

@@ -20,11 +20,12 @@ import numpy as np
 from corl.direct import DirectSearch
 from corl.errors import InputError
 from corl.learner import CORL
+from corl.optimizers.gpconfig import FITTED_CLASSIFIER, FITTED_REGRESSION
 from corl.optimizers.registry import OPTIMIZERS
 from corl.problem import Task
 from corl.settings import MethodSettings  # re-exported: defined below the tasks
 
-__all__ = ["MethodSettings", "METHODS", "PAPER_FIG1", "make_method"]
+__all__ = ["MethodSettings", "METHODS", "PAPER_FIG1", "DEFAULT_METHOD", "USER_SETTINGS", "make_method"]
 
 PAPER_FIG1 = {  # found/100, failures mean, std, max distance mean, std
     "PIBU": (100, 8.49, 1.35, 0.71, 0.44),
@@ -36,10 +37,17 @@ PAPER_FIG1 = {  # found/100, failures mean, std, max distance mean, std
     "CORL+CMA": (85, 2.98, 2.58, 1.26, 1.15),
     "CORL+SAL": (99, 1.74, 0.56, 0.06, 0.11),
 }
-METHODS = tuple(PAPER_FIG1) + ("CORL+PIBU(literal)",)
+METHODS = tuple(PAPER_FIG1) + ("CORL+PIBU(literal)", "CORL")
+#: ``CORL``: the default for a user's task -- Alg. 1 with safe BO by SEIB on GPs fitted from the
+#: data (corl.optimizers.safe); not a row of Fig. 1.
+DEFAULT_METHOD = "CORL"
 
 
 _UNCOUNTED = 2**62  # CORL counts its black-box trials itself; the optimizer inside never stops on a budget
+
+
+#: A user's task (one without ``method_settings()``): GP hyperparameters learned from the data.
+USER_SETTINGS = MethodSettings(regression=FITTED_REGRESSION, classifier=FITTED_CLASSIFIER)
 
 
 def _factory(name: str, s: MethodSettings) -> Callable:
@@ -54,16 +62,21 @@ def make_method(name: str, task: Task, *, seed: int = 0, settings: MethodSetting
     """Build the learner called ``name`` (a Fig. 1 row) for ``task``; it speaks ask/tell/run.
 
     ``settings`` default to the task's own (``task.method_settings()``, e.g. the door's
-    hyperparameters from Sec. VIII-B) or, for tasks without them, the synthetic benchmark's.
+    hyperparameters from Sec. VIII-B), the paper's synthetic values for the synthetic task, or,
+    for a user's task, :data:`USER_SETTINGS` (hyperparameters fitted from the data).
+    ``"CORL"`` is Alg. 1 with SEIB (:data:`DEFAULT_METHOD`).
     """
     if settings is None:
         preset = getattr(task, "method_settings", None)  # corl.problem.HasMethodSettings
-        settings = preset() if callable(preset) else MethodSettings()
+        if callable(preset):
+            settings = preset()
+        else:
+            settings = MethodSettings() if getattr(task, "name", None) == "synthetic" else USER_SETTINGS
         if not isinstance(settings, MethodSettings):
             raise InputError(f"task '{task.name}': method_settings() returned {type(settings).__name__}; "
                              "it must return a corl.settings.MethodSettings")
-    if name.startswith("CORL+"):
-        inner = _factory(name[len("CORL+"):], settings)
+    if name == "CORL" or name.startswith("CORL+"):
+        inner = _factory("SEIB" if name == "CORL" else name[len("CORL+"):], settings)
         return CORL(task, lambda b, x0, rng: inner(b, x0, rng, _UNCOUNTED), settings.corl, seed=seed)
     if name not in ("PIBU", "UCB", "CMA", "PoWER"):
         raise InputError(f"unknown method '{name}'; choose one of {', '.join(METHODS)}")

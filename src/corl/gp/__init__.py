@@ -2,7 +2,8 @@
 
 :class:`GPRegression` is the return model g_R (Eq. 11-12), :class:`GPClassifier` the success model
 g_S (Eq. 13, Laplace approximation with a constant negative prior mean), both with the squared
-exponential kernel of Eq. 16. Models know nothing of acquisitions.
+exponential kernel of Eq. 16. Models know nothing of acquisitions. :mod:`corl.gp.fitting` learns
+both models' hyperparameters from the data (MAP in unit-box units, with fallbacks).
 """
 
 from corl.gp.classification import (
@@ -12,6 +13,7 @@ from corl.gp.classification import (
     GPClassifier,
     expected_sigmoid,
 )
+from corl.gp.fitting import fit_classifier, fit_regression
 from corl.gp.kernels import SquaredExponential
 from corl.gp.regression import DOOR_REGRESSION, SYNTHETIC_REGRESSION, GPRegression, RegressionPreset
 
@@ -26,4 +28,6 @@ __all__ = [
     "SYNTHETIC_CLASSIFIER",
     "DOOR_CLASSIFIER",
     "expected_sigmoid",
+    "fit_regression",
+    "fit_classifier",
 ]

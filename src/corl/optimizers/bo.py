@@ -19,7 +19,7 @@ import numpy as np
 from corl.acquisition import PIBU, MaximizerConfig, PIBUConfig, PIBUVariant, maximize, upper_confidence_bound
 from corl.errors import InputError
 from corl.optimizers.base import BlackBoxOptimizer, StopReason
-from corl.optimizers.gpconfig import ClassifierConfig, RegressionConfig
+from corl.optimizers.gpconfig import ClassifierConfig, ModelFitter, RegressionConfig
 from corl.problem import Bounds
 
 __all__ = ["PIBUOptimizer", "UCBOptimizer", "StopRule", "BOConfig"]
@@ -79,6 +79,7 @@ class _BayesOpt(BlackBoxOptimizer):
         self.config = config
         self.rng = np.random.default_rng(seed)
         self.last_acquisition = None  # the acquisition of the latest ask, for plots
+        self.models = ModelFitter(config.regression, config.classifier, bounds)  # fixed or fitted GPs
 
     def _propose(self) -> np.ndarray | StopReason:
         acq = self._acquisition()
@@ -122,10 +123,10 @@ class PIBUOptimizer(_BayesOpt):
     def _acquisition(self):
         if len(self.X_) == 0:
             return None
-        classifier = self.config.classifier.build().fit(self.X_, self.success_)
+        classifier = self.models.classifier(self.X_, self.success_)
         ok = self.success_ & np.isfinite(self.returns_)
         if np.any(ok):
-            regression = self.config.regression.build().fit(self.X_[ok], self.returns_[ok])
+            regression = self.models.regression(self.X_[ok], self.returns_[ok])
             best = float(np.max(self.returns_[ok]))
         else:
             regression, best = None, 0.0
@@ -152,7 +153,7 @@ class UCBOptimizer(_BayesOpt):
             return None
         y = np.where(self.success_, self.returns_, self.failure_return)
         y = np.where(np.isfinite(y), y, self.failure_return)
-        gp = self.config.regression.build().fit(self.X_, y)
+        gp = self.models.regression(self.X_, y)
         kappa = self.kappa
 
         def ucb(X):

@@ -17,7 +17,7 @@ The same builders make the black-box part of the paper's methods
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
@@ -26,7 +26,7 @@ from corl.acquisition import PIBUConfig, PIBUVariant
 from corl.errors import InputError
 from corl.optimizers.base import BlackBoxOptimizer
 from corl.optimizers.bo import BOConfig, PIBUOptimizer, StopRule, UCBOptimizer
-from corl.optimizers.gpconfig import ClassifierConfig, RegressionConfig
+from corl.optimizers.gpconfig import FITTED_CLASSIFIER, FITTED_REGRESSION, ClassifierConfig, RegressionConfig
 from corl.optimizers.sal import SALConfig, SALOptimizer
 from corl.problem import Bounds, check_theta
 
@@ -35,6 +35,7 @@ __all__ = ["OptimizerSettings", "OPTIMIZERS", "register_optimizer", "make_optimi
 Builder = Callable[..., BlackBoxOptimizer]
 OPTIMIZERS: dict[str, Builder] = {}
 
+FITTED_BY_DEFAULT = ("CORL", "SEIB")  # without settings, these fit their GP hyperparameters to the data
 BOX_LENGTHSCALE = 0.1  # GP length scales of a user's box: a tenth of its width per dimension
 
 
@@ -149,6 +150,15 @@ def _power(bounds, start, *, budget, rng, settings):
                  start=start)
 
 
+@register_optimizer("CORL")  # the default: safe BO by SEIB on fitted GPs (corl.optimizers.safe)
+@register_optimizer("SEIB")  # the same, by its acquisition's name (the black-box step of the CORL method)
+def _seib(bounds, start, *, budget, rng, settings):
+    from corl.optimizers.safe import SAFE_BO_CONFIG, SafeBOOptimizer
+
+    config = replace(SAFE_BO_CONFIG, regression=settings.regression, classifier=settings.classifier)
+    return SafeBOOptimizer(bounds, config, max_evals=budget, seed=rng, start=start)
+
+
 def as_bounds(bounds) -> Bounds:
     """A :class:`Bounds` from a Bounds or a pair ``(lower, upper)``, with a clear error for a flat box."""
     if isinstance(bounds, Bounds):
@@ -174,14 +184,16 @@ def make_optimizer(name: str, bounds, start, *, budget: int = 50, seed=None,
 
     Parameters
     ----------
-    name : a key of :data:`OPTIMIZERS`: "PIBU", "PIBU(literal)", "PIBU(budget)", "UCB", "SAL",
-        "CMA", "PoWER" (and any registered later).
+    name : a key of :data:`OPTIMIZERS`: "CORL" (the default: safe BO by SEIB, GPs fitted from the
+        data; also "SEIB"), "PIBU", "PIBU(literal)", "PIBU(budget)", "UCB", "SAL", "CMA", "PoWER"
+        (and any registered later).
     bounds : :class:`Bounds` or ``(lower, upper)``, (m,) each, lower < upper.
     start : (m,) inside the box: the first trial. The safe methods (PIBU, SAL) grow the safe set
         from it, so it should be a point known to succeed.
     budget : trials in all, the start included (>= 1).
     seed : int, Generator or None.
-    settings : :class:`OptimizerSettings`; None takes :meth:`OptimizerSettings.for_box`.
+    settings : :class:`OptimizerSettings`; None takes :meth:`OptimizerSettings.for_box` (with
+        fitted GPs for "CORL" and "SEIB").
 
     Raises
     ------
@@ -198,6 +210,8 @@ def make_optimizer(name: str, bounds, start, *, budget: int = 50, seed=None,
         raise InputError(f"budget (trials in all, the start included) must be an integer >= 1, got {budget!r}")
     if settings is None:
         settings = OptimizerSettings.for_box(box)
+        if name in FITTED_BY_DEFAULT:  # corl's default learns its GPs from the data
+            settings = replace(settings, regression=FITTED_REGRESSION, classifier=FITTED_CLASSIFIER)
     elif not isinstance(settings, OptimizerSettings):
         raise InputError(f"settings must be an OptimizerSettings, got {type(settings).__name__}")
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)

@@ -1,0 +1,427 @@
+"""Safe BO on problems nobody tuned for: corl's CORL and PIBU beside BoTorch and SafeOpt.
+
+Each problem is a box, a start known to succeed, a binary success S(theta) and a return R(theta)
+seen only on success. Every method gets nothing but the box and the start (told as trial 1) and
+at most ``--budget`` (40) black-box trials in all. Printed per method and problem:
+
+  found    : runs whose best success is within 2 % of the return range of the optimum (the best R
+             in the start's connected safe component, on a dense grid)
+  fail     : failures per run (mean)
+  beyond   : largest distance of a failure from the safe set, in unit-box units (max over runs)
+  trials   : trials per run (mean), start included
+  ms/it    : mean wall time of one ask (fit both models, maximise)
+
+Problems marked ``held-out`` were never looked at while designing CORL (SEIB); the others were.
+Peers are optional (``pip install corl[bench]``): BoTorch's constrained LogEI with the success
+labels as a GP constraint (both GPs' hyperparameters fitted), and SafeOpt, which needs GPy and so
+numpy < 2: it runs in its own interpreter, ``--safeopt-python`` (a venv with safeopt), and is
+skipped when there is none. ``--speed`` times one iteration at 100 points in 2-D for CORL and
+BoTorch in this run.
+
+    OPENBLAS_NUM_THREADS=1 python benchmarks/safe_bo_suite.py --starts 20
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
+
+from corl.errors import StateError  # noqa: E402
+from corl.optimizers.bo import BOConfig, PIBUOptimizer  # noqa: E402
+from corl.optimizers.gpconfig import FITTED_CLASSIFIER, FITTED_REGRESSION, ClassifierConfig, RegressionConfig  # noqa: E402
+from corl.optimizers.safe import SafeBOOptimizer  # noqa: E402
+from corl.problem import Bounds, Outcome  # noqa: E402
+
+
+# ---------------------------------------------------------------------------------------------
+# Problems: S and R vectorised over (s, m) arrays in theta units
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Problem:
+    name: str
+    lower: tuple
+    upper: tuple
+    start: tuple
+    safe: Callable[[np.ndarray], np.ndarray]
+    ret: Callable[[np.ndarray], np.ndarray]
+    what: str
+    held_out: bool = False
+
+    @property
+    def bounds(self) -> Bounds:
+        return Bounds(np.array(self.lower, float), np.array(self.upper, float))
+
+
+def _ball(c, r):
+    c = np.asarray(c, float)
+    return lambda X: np.linalg.norm(X - c, axis=1) < r
+
+
+def _sq(c, w=1.0):
+    c = np.asarray(c, float)
+    return lambda X: -w * np.sum((X - c) ** 2, axis=1)
+
+
+def _annulus_sector(X):  # non-convex: a thick ring, cut open on the left
+    r = np.linalg.norm(X, axis=1)
+    return (r > 1.0) & (r < 2.0) & (X[:, 0] > -0.8)
+
+
+def _two_discs(X):
+    return _ball((-1.5, 0.0), 0.9)(X) | _ball((1.6, 0.5), 1.0)(X)
+
+
+def _crescent(X):  # held-out: disc minus a shifted disc
+    return _ball((0.0, 0.0), 2.0)(X) & ~_ball((0.9, 0.0), 1.6)(X)
+
+
+def _bumps_1d(X):
+    x = X[:, 0]
+    return np.sin(1.3 * x) + 0.6 * np.exp(-((x - 5.3) ** 2) / 0.3)
+
+
+PROBLEMS = [
+    Problem("edge-1d", (0.0,), (10.0,), (3.0,), lambda X: (X[:, 0] > 2.0) & (X[:, 0] < 6.5),
+            lambda X: X[:, 0] - 0.05 * X[:, 0] ** 2, "1-D, optimum on the edge of the safe interval"),
+    Problem("inside-2d", (-2.0, -2.0), (2.0, 2.0), (-0.6, -0.7), _ball((0.0, 0.0), 1.2), _sq((0.45, 0.35)),
+            "2-D convex disc, optimum well inside"),
+    Problem("ring-edge-2d", (-2.5, -2.5), (2.5, 2.5), (1.5, -0.3), _annulus_sector,
+            lambda X: X[:, 1] - 0.1 * X[:, 0] ** 2, "2-D non-convex ring sector, optimum on its edge"),
+    Problem("two-discs-2d", (-3.0, -2.0), (3.0, 2.5), (1.2, 0.2), _two_discs,
+            lambda X: -np.sum((X - np.array([2.3, 1.0])) ** 2, axis=1),
+            "2-D two safe discs, start in one; optimum on its far edge"),
+    Problem("ellipsoid-3d", (-1.0, -1.0, -1.0), (1.0, 1.0, 1.0), (0.0, 0.0, 0.0),
+            lambda X: np.sum((X / np.array([0.8, 0.5, 0.6])) ** 2, axis=1) < 1.0,
+            lambda X: X[:, 0] + 0.5 * X[:, 1] - X[:, 2] ** 2, "3-D ellipsoid, optimum on the edge"),
+    Problem("inside-4d", (-1.0,) * 4, (1.0,) * 4, (-0.3, -0.3, -0.3, -0.3), _ball((0.0,) * 4, 0.8),
+            _sq((0.2, 0.1, 0.2, -0.1)), "4-D ball, optimum inside"),
+    # held-out: never used while designing SEIB
+    Problem("bumps-1d", (0.0,), (8.0,), (1.1,), lambda X: (X[:, 0] > 0.5) & (X[:, 0] < 6.0), _bumps_1d,
+            "1-D multimodal R, optimum inside next to a local one", held_out=True),
+    Problem("crescent-2d", (-2.5, -2.5), (2.5, 2.5), (-1.5, 0.0), _crescent,
+            lambda X: -np.sum((X - np.array([0.5, 1.7])) ** 2, axis=1),
+            "2-D crescent (non-convex), optimum at its horn's edge", held_out=True),
+    Problem("slab-3d", (0.0, 0.0, 0.0), (4.0, 2.0, 1.0), (0.5, 0.5, 0.5),
+            lambda X: (X[:, 0] + X[:, 1] < 3.0) & (np.abs(X[:, 2] - 0.5) < 0.35),
+            _sq((1.5, 0.8, 0.6)), "3-D slab, optimum inside", held_out=True),
+    Problem("halfball-4d", (-1.0,) * 4, (1.0,) * 4, (0.0, 0.0, 0.0, -0.3),
+            lambda X: (np.linalg.norm(X, axis=1) < 0.9) & (X[:, 0] + X[:, 1] < 0.5),
+            lambda X: X[:, 0] + X[:, 1] - 0.5 * X[:, 2] ** 2 - 0.3 * X[:, 3] ** 2,
+            "4-D half ball, optimum on the flat edge", held_out=True),
+]
+
+_GRID = {1: 20001, 2: 401, 3: 71, 4: 29}
+
+
+@dataclass
+class Truth:
+    """Dense-grid facts of a problem: optimum, found threshold and a distance-to-safe-set query."""
+
+    best: float
+    tol: float
+    tree: object
+
+    def beyond(self, U: np.ndarray) -> np.ndarray:
+        return self.tree.query(U)[0] if len(U) else np.zeros(0)
+
+
+def truth_of(p: Problem) -> Truth:
+    from scipy import ndimage
+    from scipy.spatial import cKDTree
+
+    b, m = p.bounds, p.bounds.dim
+    n = _GRID[m]
+    axes = [np.linspace(0.0, 1.0, n)] * m
+    U = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, m)
+    X = b.from_unit(U)
+    safe = p.safe(X)
+    labels, _ = ndimage.label(safe.reshape((n,) * m))
+    start_idx = tuple(np.round(b.to_unit(np.array(p.start)) * (n - 1)).astype(int))
+    comp = labels.reshape(-1) == labels[start_idx]
+    assert labels[start_idx] > 0, f"start of {p.name} is not safe"
+    R = p.ret(X[comp])
+    return Truth(float(R.max()), 0.02 * float(R.max() - R.min()), cKDTree(U[safe]))
+
+
+def rollout(p: Problem, x: np.ndarray) -> Outcome:
+    x = np.asarray(x, float).reshape(1, -1)
+    if bool(p.safe(x)[0]):
+        return Outcome(True, float(p.ret(x)[0]))
+    return Outcome(False, None)
+
+
+def starts_of(p: Problem, k: int, seed: int) -> np.ndarray:
+    """The given start, then random safe points near it (within 15 % of the box) for k runs."""
+    rng = np.random.default_rng([seed, sum(map(ord, p.name))])
+    b = p.bounds
+    out = [np.array(p.start, float)]
+    while len(out) < k:
+        x = np.array(p.start) + 0.15 * b.width * rng.uniform(-1, 1, b.dim)
+        if b.contains(x) and p.safe(x[None])[0]:
+            out.append(x)
+    return np.array(out)
+
+
+# ---------------------------------------------------------------------------------------------
+# Methods: each returns (X (t, m), success (t,), returns (t,), ms per ask)
+# ---------------------------------------------------------------------------------------------
+def _drive(opt, p: Problem, start: np.ndarray, budget: int):
+    opt.tell(start, rollout(p, start))
+    times = []
+    while not opt.done and opt.n_evals < budget:
+        t0 = time.perf_counter()
+        try:
+            x = opt.ask()
+        except StateError:  # converged (the stop contract of issue 11 item 4 may turn this into done)
+            break
+        times.append(time.perf_counter() - t0)
+        opt.tell(x, rollout(p, x))
+    return opt.X_, opt.success_, opt.returns_, 1e3 * float(np.mean(times)) if times else 0.0
+
+
+def run_corl(p, start, budget, seed):
+    return _drive(SafeBOOptimizer(p.bounds, max_evals=budget, seed=seed), p, start, budget)
+
+
+def run_pibu(p, start, budget, seed):  # PIBU as a user gets it now: GPs fitted from the data
+    cfg = BOConfig(FITTED_REGRESSION, FITTED_CLASSIFIER, distance_scale=tuple(p.bounds.width))
+    return _drive(PIBUOptimizer(p.bounds, cfg, max_evals=budget, seed=seed), p, start, budget)
+
+
+def run_pibu_tenth(p, start, budget, seed):  # the issue's baseline: l = box / 10, paper sf and noise
+    ls = tuple(0.1 * p.bounds.width)
+    cfg = BOConfig(RegressionConfig(lengthscale=ls), ClassifierConfig(lengthscale=ls),
+                   distance_scale=tuple(p.bounds.width))
+    return _drive(PIBUOptimizer(p.bounds, cfg, max_evals=budget, seed=seed), p, start, budget)
+
+
+def botorch_step(b: Bounds, X, s, r, seed: int):
+    """One constrained LogEI step: GP on successful returns, GP constraint on labels (+-1) >= 0."""
+    import torch
+    from botorch.acquisition.analytic import LogConstrainedExpectedImprovement
+    from botorch.fit import fit_gpytorch_mll
+    from botorch.models import ModelListGP, SingleTaskGP
+    from botorch.models.transforms import Standardize
+    from botorch.optim import optimize_acqf
+    from gpytorch.mlls import ExactMarginalLogLikelihood
+
+    torch.manual_seed(seed)
+    U = torch.tensor(b.to_unit(X), dtype=torch.float64)
+    ok = torch.tensor(s)
+    y = torch.tensor(np.where(s, r, 0.0), dtype=torch.float64)[:, None]
+    c = torch.tensor(np.where(s, 1.0, -1.0), dtype=torch.float64)[:, None]
+    f_gp = SingleTaskGP(U[ok], y[ok], outcome_transform=Standardize(m=1))
+    c_gp = SingleTaskGP(U, c)
+    for gp in (f_gp, c_gp):
+        try:
+            fit_gpytorch_mll(ExactMarginalLogLikelihood(gp.likelihood, gp))
+        except Exception:  # noqa: BLE001 -- a failed fit keeps BoTorch's default hyperparameters
+            pass
+    model = ModelListGP(f_gp, c_gp)
+    acq = LogConstrainedExpectedImprovement(model, best_f=float(y[ok].max()), objective_index=0,
+                                            constraints={1: (0.0, None)})
+    m = b.dim
+    box = torch.stack([torch.zeros(m), torch.ones(m)]).double()
+    cand, _ = optimize_acqf(acq, bounds=box, q=1, num_restarts=4, raw_samples=128)
+    return b.from_unit(cand.detach().numpy().reshape(m))
+
+
+def run_botorch(p, start, budget, seed):
+    b = p.bounds
+    X, s, r, times = [np.array(start)], [True], [float(p.ret(np.array(start)[None])[0])], []
+    while len(X) < budget:
+        t0 = time.perf_counter()
+        x = botorch_step(b, np.array(X), np.array(s), np.array(r), seed + len(X))
+        times.append(time.perf_counter() - t0)
+        o = rollout(p, x)
+        X.append(x), s.append(o.success), r.append(np.nan if o.return_ is None else o.return_)
+    return np.array(X), np.array(s), np.array(r), 1e3 * float(np.mean(times))
+
+
+_SAFEOPT_WORKER = r'''
+import collections, collections.abc, json, sys, time
+for _n in ("Sequence", "Iterable", "Mapping"):  # safeopt 0.16 predates Python 3.10
+    setattr(collections, _n, getattr(collections.abc, _n))
+import numpy as np
+np.float, np.int, np.bool = float, int, bool  # ... and numpy 1.24
+import GPy, safeopt
+for line in sys.stdin:
+    job = json.loads(line)
+    m, budget, start, n = job["m"], job["budget"], np.array(job["start"]), job["grid"]
+    grid = safeopt.linearly_spaced_combinations([(0.0, 1.0)] * m, [n] * m)
+    grid = np.vstack([grid, start[None]])  # the start is safe: SafeOpt's set must contain it
+    r0 = job["r0"]; scale = abs(r0) if r0 else 1.0
+    kf = GPy.kern.RBF(m, variance=1.0, lengthscale=0.2, ARD=False)
+    kc = GPy.kern.RBF(m, variance=1.0, lengthscale=0.1, ARD=False)
+    x0 = start[None]
+    gpf = GPy.models.GPRegression(x0, np.array([[r0 / scale]]), kf, noise_var=1e-3)
+    # labels +-1 are a step: with tiny noise, nearby opposite labels make the interpolant ring
+    # (means of +-20 far away) and SafeOpt then calls distant points safe; noise 0.1 damps it
+    gpc = GPy.models.GPRegression(x0, np.array([[1.0]]), kc, noise_var=0.1)
+    opt = safeopt.SafeOpt([gpf, gpc], grid, fmin=[-np.inf, 0.0], beta=2.0, threshold=np.array([-np.inf, 0.0]))
+    times, out = [], []
+    for _ in range(budget - 1):
+        t0 = time.perf_counter()
+        try:
+            x = opt.optimize()
+        except Exception:
+            break
+        times.append(time.perf_counter() - t0)
+        sys.stdout.write(json.dumps({"x": list(map(float, x))}) + "\n"); sys.stdout.flush()
+        res = json.loads(sys.stdin.readline())
+        y = np.array([[res["r"] / scale if res["ok"] else np.nan, 1.0 if res["ok"] else -1.0]])
+        opt.add_new_data_point(x, y)
+    sys.stdout.write(json.dumps({"done": True, "ms": 1e3 * float(np.mean(times)) if times else 0.0}) + "\n")
+    sys.stdout.flush()
+'''
+
+
+def make_safeopt_runner(python: str):
+    proc = subprocess.Popen([python, "-c", _SAFEOPT_WORKER], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            text=True, env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})
+
+    def run(p, start, budget, seed):
+        b = p.bounds
+        u0 = b.to_unit(np.array(start))
+        r0 = float(p.ret(np.array(start)[None])[0])
+        grid = {1: 200, 2: 40, 3: 12, 4: 7}[b.dim]  # SafeOpt scores every grid point per expander
+        proc.stdin.write(json.dumps({"m": b.dim, "budget": budget, "start": u0.tolist(), "r0": r0,
+                                     "grid": grid}) + "\n")
+        proc.stdin.flush()
+        X, s, r = [np.array(start)], [True], [r0]
+        while True:
+            msg = json.loads(proc.stdout.readline())
+            if "done" in msg:
+                return np.array(X), np.array(s), np.array(r), msg["ms"]
+            x = b.from_unit(np.array(msg["x"]))
+            o = rollout(p, x)
+            X.append(x), s.append(o.success), r.append(np.nan if o.return_ is None else o.return_)
+            proc.stdin.write(json.dumps({"ok": o.success, "r": o.return_}) + "\n")
+            proc.stdin.flush()
+
+    return run
+
+
+# ---------------------------------------------------------------------------------------------
+# The table
+# ---------------------------------------------------------------------------------------------
+def score(p: Problem, truth: Truth, X, s, r) -> dict:
+    ok = s & np.isfinite(r)
+    best = float(np.max(r[ok]))
+    fails = X[~s]
+    beyond = truth.beyond(p.bounds.to_unit(fails)) if len(fails) else np.zeros(1)
+    return {"found": best >= truth.best - truth.tol, "fail": int(np.sum(~s)), "beyond": float(np.max(beyond)),
+            "trials": len(X)}
+
+
+def speed(n: int = 100, seed: int = 0) -> dict:
+    """ms of one iteration at n points in 2-D: CORL (fit both GPs + maximise) and BoTorch."""
+    p = PROBLEMS[1]
+    rng = np.random.default_rng(seed)
+    X = p.bounds.from_unit(rng.random((n, 2)))
+    s = p.safe(X)
+    r = np.where(s, p.ret(X), np.nan)
+    opt = SafeBOOptimizer(p.bounds, max_evals=10 * n, seed=seed)
+    for x, o in zip(X, (rollout(p, x) for x in X)):
+        opt.tell(x, o)
+    out = {}
+    times = []
+    for _ in range(3):
+        opt._pending = None
+        t0 = time.perf_counter()
+        opt._propose()
+        times.append(time.perf_counter() - t0)
+    out["CORL"] = 1e3 * min(times)
+    try:
+        times = []
+        for k in range(2):
+            t0 = time.perf_counter()
+            botorch_step(p.bounds, X, s, r, seed + k)
+            times.append(time.perf_counter() - t0)
+        out["BoTorch"] = 1e3 * min(times)
+    except ImportError:
+        out["BoTorch"] = None
+    return out
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--starts", type=int, default=20)
+    ap.add_argument("--peer-starts", type=int, default=None, help="starts for the peers (default --starts)")
+    ap.add_argument("--budget", type=int, default=40)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--methods", default="CORL,PIBU,PIBU(l=w/10),BoTorch,SafeOpt")
+    ap.add_argument("--problems", default=None, help="comma-separated names (default all)")
+    local = Path(__file__).resolve().parents[1] / ".venv-safeopt" / "bin" / "python"
+    ap.add_argument("--safeopt-python", default=os.environ.get("CORL_SAFEOPT_PYTHON", str(local)),
+                    help="an interpreter with safeopt installed (default $CORL_SAFEOPT_PYTHON)")
+    ap.add_argument("--speed", action="store_true", help="also time one iteration at 100 points in 2-D")
+    ap.add_argument("--json", default=None, help="write every run's numbers here")
+    args = ap.parse_args(argv)
+
+    runners = {"CORL": run_corl, "PIBU": run_pibu, "PIBU(l=w/10)": run_pibu_tenth}
+    wanted = [m.strip() for m in args.methods.split(",") if m.strip()]
+    if "BoTorch" in wanted:
+        try:
+            import botorch  # noqa: F401
+            runners["BoTorch"] = run_botorch
+        except ImportError:
+            print("BoTorch: not installed (pip install 'corl[bench]'), skipped")
+    if "SafeOpt" in wanted:
+        if args.safeopt_python and Path(args.safeopt_python).exists():
+            runners["SafeOpt"] = make_safeopt_runner(args.safeopt_python)
+        else:
+            print("SafeOpt: no interpreter with safeopt (--safeopt-python), skipped")
+    methods = [m for m in wanted if m in runners]
+    problems = [p for p in PROBLEMS if args.problems is None or p.name in args.problems.split(",")]
+
+    rows, records = [], []
+    for p in problems:
+        truth = truth_of(p)
+        for name in methods:
+            k = args.starts if name in ("CORL", "PIBU", "PIBU(l=w/10)") or args.peer_starts is None else args.peer_starts
+            runs, ms = [], []
+            for i, x0 in enumerate(starts_of(p, k, args.seed)):
+                X, s, r, t = runners[name](p, x0, args.budget, args.seed + i)
+                runs.append(score(p, truth, X, s, r))
+                ms.append(t)
+                records.append({"problem": p.name, "method": name, "start": i, **runs[-1], "ms": t})
+            rows.append((p, name, runs, float(np.mean(ms))))
+            print(_row(p, name, runs, float(np.mean(ms))), flush=True)
+    print()
+    print(f"Safe BO suite: {args.budget} trials, start told first; found = within 2 % of the return range")
+    print(f"{'problem':<14} {'set':<9} {'method':<13} {'found':>7} {'fail':>6} {'beyond':>7} {'trials':>7} {'ms/it':>8}")
+    print("-" * 78)
+    for p, name, runs, ms in rows:
+        print(_row(p, name, runs, ms))
+    if args.speed:
+        sp = speed()
+        bt = "not installed" if sp["BoTorch"] is None else f"{sp['BoTorch']:.0f} ms"
+        ratio = "" if sp["BoTorch"] is None else f" ({sp['BoTorch'] / sp['CORL']:.0f}x)"
+        print(f"\none iteration at 100 points in 2-D: CORL {sp['CORL']:.0f} ms, BoTorch {bt}{ratio}")
+    if args.json:
+        Path(args.json).write_text(json.dumps(records, indent=1))
+
+
+def _row(p, name, runs, ms) -> str:
+    found = sum(r["found"] for r in runs)
+    fail = np.mean([r["fail"] for r in runs])
+    beyond = max(r["beyond"] for r in runs)
+    trials = np.mean([r["trials"] for r in runs])
+    tag = "held-out" if p.held_out else "training"
+    return f"{p.name:<14} {tag:<9} {name:<13} {found:>3}/{len(runs):<3} {fail:>6.1f} {beyond:>7.3f} {trials:>7.1f} {ms:>8.1f}"
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,263 @@
+"""MAP hyperparameters for g_R and g_S in normalised units, safe with few points.
+
+Both GPs are fitted in the unit box (``U = Bounds.to_unit(X)``); g_R on standardised returns
+``z = (y - y_mean) / y_scale``. There every hyperparameter has a weak log-normal prior and hard
+bounds that do not depend on the task's units, so one set of priors serves every user's task.
+The fitted values are then mapped back to theta units exactly:
+
+    k_theta(x, x') = k_unit(u, u')  with  l_theta = l_unit * width          (ARD, Eq. 16)
+    g_R(x) = y_mean + y_scale * g_unit(u):  m0 = y_mean, sf = sf_unit * y_scale,
+                                            sigma = sigma_unit * y_scale
+
+so the returned model is an ordinary :class:`GPRegression` / :class:`GPClassifier` in theta units
+(acquisitions see no difference). When the data cannot identify the hyperparameters (too few
+successes, all returns equal, all labels equal) or the optimizer fails, the prior medians are
+used (``FitResult.fallback`` says why). Each fit starts L-BFGS-B from the previous fit's values
+(``warm``) and runs a few iterations with analytic gradients: GPML eq. 5.9 for g_R, the Laplace
+approximation's GPML Alg. 5.1 for g_S.
+
+Glossary
+--------
+U        : inputs in the unit box, (d, m)
+z        : standardised returns, (d,)
+v        : log hyperparameters in unit-box units: ``[log l_1..l_m, log sf(, log sigma)]``
+prior    : ``log p(v) = sum_j -1/2 ((v_j - log median_j) / spread_j)^2`` (+ const)
+MAP      : ``argmax_v log p(y | X, v) + log p(v)`` within the bounds
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from corl.errors import CorlError, InputError
+from corl.gp.classification import GPClassifier, LaplaceConvergenceWarning, labels_to_pm1
+from corl.gp.kernels import SquaredExponential
+from corl.gp.regression import GPRegression
+
+__all__ = ["HyperPrior", "RegressionPriors", "ClassifierPriors", "FitResult", "fit_regression", "fit_classifier"]
+
+
+@dataclass(frozen=True)
+class HyperPrior:
+    """Log-normal prior ``log x ~ N(log median, spread^2)`` truncated to ``[low, high]``."""
+
+    median: float
+    spread: float
+    low: float
+    high: float
+
+    def __post_init__(self) -> None:
+        vals = (self.median, self.spread, self.low, self.high)
+        if not all(np.isfinite(v) and v > 0 for v in vals) or not self.low <= self.median <= self.high \
+                or self.low >= self.high:
+            raise InputError(f"a hyperparameter prior needs 0 < low <= median <= high and spread > 0, got {self}")
+
+
+@dataclass(frozen=True)
+class RegressionPriors:
+    """Priors of g_R in the unit box with standardised returns; medians are the fallback values."""
+
+    lengthscale: HyperPrior = HyperPrior(0.25, 0.75, 0.03, 3.0)
+    signal_std: HyperPrior = HyperPrior(1.0, 0.75, 0.1, 10.0)
+    noise_std: HyperPrior = HyperPrior(0.05, 1.0, 1e-3, 1.0)
+    min_points: int = 3  # fewer successes than this: no fit, prior medians
+    max_iter: int = 20  # L-BFGS-B iterations per fit (warm-started)
+
+    def __post_init__(self) -> None:
+        if self.min_points < 2 or self.max_iter < 1:
+            raise InputError(f"min_points must be >= 2 and max_iter >= 1, got {self.min_points}, {self.max_iter}")
+
+
+@dataclass(frozen=True)
+class ClassifierPriors:
+    """Priors of g_S's kernel in the unit box (latent units); the prior mean stays fixed."""
+
+    lengthscale: HyperPrior = HyperPrior(0.1, 0.75, 0.03, 3.0)  # short: small first steps into the unknown
+    signal_std: HyperPrior = HyperPrior(10.0, 0.5, 2.0, 50.0)
+    max_iter: int = 20
+
+    def __post_init__(self) -> None:
+        if self.max_iter < 1:
+            raise InputError(f"max_iter must be >= 1, got {self.max_iter}")
+
+
+@dataclass(frozen=True, eq=False)
+class FitResult:
+    """A model fitted in theta units and the unit-box log hyperparameters to warm-start from.
+
+    Attributes
+    ----------
+    model : fitted :class:`GPRegression` or :class:`GPClassifier` (theta units).
+    log_params : (p,) unit-box ``v`` used (fitted, or the prior medians on fallback).
+    fallback : empty when fitted, else why the prior medians were used.
+    """
+
+    model: object
+    log_params: np.ndarray
+    fallback: str = ""
+    extra: dict = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------------------------------------
+# The MAP search
+# ---------------------------------------------------------------------------------------------
+def _medians(priors: list[HyperPrior]) -> np.ndarray:
+    return np.log([p.median for p in priors])
+
+
+def _log_prior(v: np.ndarray, priors: list[HyperPrior]) -> tuple[float, np.ndarray]:
+    """Log-normal log density (up to a constant) and its gradient in ``v``, (p,)."""
+    mu = _medians(priors)
+    s2 = np.array([p.spread for p in priors]) ** 2
+    r = v - mu
+    return float(-0.5 * np.sum(r * r / s2)), -r / s2
+
+
+def _map(lml, v0: np.ndarray, priors: list[HyperPrior], max_iter: int) -> np.ndarray:
+    """``argmax_v lml(v) + log p(v)`` by L-BFGS-B from ``v0`` within the priors' bounds; None if it fails."""
+    from scipy import optimize  # only fitting needs it
+
+    lo = np.log([p.low for p in priors])
+    hi = np.log([p.high for p in priors])
+
+    def negative(v):
+        try:
+            value, grad = lml(v)
+        except CorlError:
+            return np.inf, np.zeros_like(v)
+        prior, dprior = _log_prior(v, priors)
+        total = value + prior
+        if not np.isfinite(total) or not np.all(np.isfinite(grad)):
+            return np.inf, np.zeros_like(v)
+        return -total, -(grad + dprior)
+
+    start = np.clip(v0, lo, hi)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LaplaceConvergenceWarning)
+        res = optimize.minimize(negative, start, jac=True, method="L-BFGS-B", bounds=list(zip(lo, hi)),
+                                options={"maxiter": int(max_iter)})
+    if not np.isfinite(res.fun) or not np.all(np.isfinite(res.x)):
+        return None
+    f_start, _ = negative(start)
+    return res.x if res.fun <= f_start else start
+
+
+def _warm_start(warm, priors: list[HyperPrior]) -> np.ndarray:
+    v = _medians(priors)
+    if warm is not None:
+        w = np.asarray(warm, dtype=float).reshape(-1)
+        if w.shape == v.shape and np.all(np.isfinite(w)):
+            v = w
+    return v
+
+
+# ---------------------------------------------------------------------------------------------
+# g_R
+# ---------------------------------------------------------------------------------------------
+def fit_regression(X, y, bounds, priors: RegressionPriors = RegressionPriors(), warm=None) -> FitResult:
+    """MAP fit of g_R (ARD squared exponential, Gaussian noise, constant mean = mean of y).
+
+    Parameters
+    ----------
+    X : (d, m) successful thetas inside ``bounds``; y : (d,) their returns.
+    bounds : :class:`corl.problem.Bounds` of theta (the unit box is defined by it).
+    priors : :class:`RegressionPriors` in unit-box, standardised units.
+    warm : (m + 2,) unit-box log hyperparameters of the previous fit, or None.
+
+    Returns
+    -------
+    FitResult with a fitted :class:`GPRegression` in theta units.
+    """
+    X = np.asarray(X, dtype=float).reshape(-1, bounds.dim)
+    y = np.asarray(y, dtype=float).reshape(-1)
+    if X.shape[0] != y.shape[0]:
+        raise InputError(f"X has {X.shape[0]} rows but y has {y.shape[0]} entries; one per point")
+    m = bounds.dim
+    plist = [priors.lengthscale] * m + [priors.signal_std, priors.noise_std]
+    U = bounds.to_unit(X)
+    # Standardise: z = (y - mean) / scale. One point (or equal returns) has no spread; then the
+    # return's own magnitude sets the scale so that a later change of units changes nothing.
+    mean = float(np.mean(y)) if y.size else 0.0
+    spread = float(np.std(y)) if y.size else 0.0
+    tiny = 1e-12 * max(1.0, abs(mean))
+    scale = spread if spread > tiny else (abs(mean) if abs(mean) > 0 else 1.0)
+    z = (y - mean) / scale
+
+    v, reason = _warm_start(warm, plist), ""
+    if y.size < priors.min_points:
+        reason, v = f"{y.size} successful point(s) < {priors.min_points}", _medians(plist)
+    elif spread <= tiny:
+        reason, v = "all returns equal", _medians(plist)
+    else:
+        gp = GPRegression(SquaredExponential(np.exp(v[:m]), np.exp(v[m])), float(np.exp(v[m + 1])))
+        try:
+            gp.fit(U, z)
+            found = _map(lambda w: gp.log_marginal_likelihood(w, eval_gradient=True), v, plist, priors.max_iter)
+        except CorlError:
+            found = None
+        if found is None:
+            reason, v = "marginal likelihood optimization failed", _medians(plist)
+        else:
+            v = found
+    kernel = SquaredExponential(np.exp(v[:m]) * bounds.width, float(np.exp(v[m])) * scale)
+    model = GPRegression(kernel, float(np.exp(v[m + 1])) * scale, prior_mean=mean).fit(X, y)
+    return FitResult(model, v, reason, {"scale": scale})
+
+
+# ---------------------------------------------------------------------------------------------
+# g_S
+# ---------------------------------------------------------------------------------------------
+def fit_classifier(X, s, bounds, prior_mean: float, priors: ClassifierPriors = ClassifierPriors(),
+                   warm=None, previous: GPClassifier | None = None) -> FitResult:
+    """MAP fit of g_S's kernel with the Laplace marginal likelihood (GPML eq. 3.32, Alg. 5.1).
+
+    The constant prior mean stays fixed: it encodes "unexplored regions fail" and would drift up
+    to "everything succeeds" on a run of successes.
+
+    Parameters
+    ----------
+    X : (d, m) thetas inside ``bounds``; s : (d,) outcomes (bool, {0, 1} or {-1, +1}).
+    bounds : :class:`corl.problem.Bounds` of theta.
+    prior_mean : constant prior mean of the latent function.
+    priors : :class:`ClassifierPriors` in unit-box units.
+    warm : (m + 1,) unit-box log hyperparameters of the previous fit, or None.
+    previous : the previous fitted classifier; its Laplace mode warm-starts the Newton search.
+
+    Returns
+    -------
+    FitResult with a fitted :class:`GPClassifier` in theta units.
+    """
+    X = np.asarray(X, dtype=float).reshape(-1, bounds.dim)
+    y = labels_to_pm1(s)
+    if X.shape[0] != y.shape[0]:
+        raise InputError(f"X has {X.shape[0]} rows but s has {y.shape[0]} entries; one per point")
+    m = bounds.dim
+    plist = [priors.lengthscale] * m + [priors.signal_std]
+    U = bounds.to_unit(X)
+    v, reason = _warm_start(warm, plist), ""
+    if y.size == 0 or np.all(y == y[0]):
+        reason, v = "all outcomes equal" if y.size else "no data", _medians(plist)
+    else:
+        clf = GPClassifier(SquaredExponential(np.exp(v[:m]), float(np.exp(v[m]))), prior_mean, warm_start=False)
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", LaplaceConvergenceWarning)
+                clf.fit(U, y)
+            found = _map(lambda w: clf.log_marginal_likelihood(w, eval_gradient=True), v, plist, priors.max_iter)
+        except CorlError:
+            found = None
+        if found is None:
+            reason, v = "marginal likelihood optimization failed", _medians(plist)
+        else:
+            v = found
+    kernel = SquaredExponential(np.exp(v[:m]) * bounds.width, float(np.exp(v[m])))
+    model = GPClassifier(kernel, prior_mean)
+    if previous is not None and hasattr(previous, "a_"):  # reuse the last mode as the Newton start
+        model.a_, model.X_ = previous.a_, previous.X_
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", LaplaceConvergenceWarning)
+        model.fit(X, y)
+    return FitResult(model, v, reason)

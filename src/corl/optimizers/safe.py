@@ -1,0 +1,82 @@
+"""The ``CORL`` default black-box method: safe BO with SEIB and GPs fitted from the data.
+
+:class:`SafeBOOptimizer` fits g_S on every point and g_R on the successes (MAP hyperparameters
+in unit-box units, :mod:`corl.gp.fitting`, warm-started from the previous ask), maximises SEIB
+(:mod:`corl.acquisition.safe_ei`) and stops when nothing is left that is both plausible and safe
+(``max a < stop_value``; with few successes also with the boundary gate open) or the
+maximiser lands on a sampled point. It needs one known success
+(the start) before its first ask: a safe method never guesses a first point.
+"""
+
+from __future__ import annotations
+
+
+import numpy as np
+
+from corl.acquisition import maximize
+from corl.acquisition.safe_ei import SEIB, SEIBConfig
+from corl.optimizers.base import StopReason
+from corl.optimizers.bo import BOConfig, StopRule, _BayesOpt, _stop
+from corl.optimizers.gpconfig import FITTED_CLASSIFIER, FITTED_REGRESSION
+from corl.problem import Bounds
+
+__all__ = ["SafeBOOptimizer", "SAFE_BO_CONFIG", "return_scale"]
+
+#: Fitted GPs; stop when the next point lies within 1e-3 of the box width of a sampled one.
+SAFE_BO_CONFIG = BOConfig(FITTED_REGRESSION, FITTED_CLASSIFIER, stop_rule=StopRule.NEAR_SAMPLED,
+                          stop_distance=1e-3)
+
+
+def return_scale(returns: np.ndarray) -> float:
+    """Spread of the successful returns (d,): their std, or |R| of one of them, or 1."""
+    r = np.asarray(returns, dtype=float)
+    if r.size >= 2 and np.std(r) > 1e-12 * max(1.0, float(np.max(np.abs(r)))):
+        return float(np.std(r))
+    top = float(np.max(np.abs(r))) if r.size else 0.0
+    return top if top > 0 else 1.0
+
+
+class SafeBOOptimizer(_BayesOpt):
+    """Safe Bayesian optimization with SEIB (the ``CORL`` method's black-box step).
+
+    Parameters
+    ----------
+    bounds : search box over theta, (m,) each.
+    config : GP configurations (fitted by default), maximiser and stopping rule. A stop distance
+        is measured in units of the box width per dimension unless ``distance_scale`` is given.
+    seib : :class:`SEIBConfig`.
+    max_evals : total points told, the start included.
+    seed : seed of the maximiser.
+    """
+
+    needs_success = True  # a safe method: stops with NO_SAFE_POINT while every trial failed
+
+    def __init__(self, bounds: Bounds, config: BOConfig = SAFE_BO_CONFIG, seib: SEIBConfig = SEIBConfig(), *,
+                 max_evals: int = 100, seed=None, start=None) -> None:
+        super().__init__(bounds, config, max_evals=max_evals, seed=seed, name="CORL", start=start)
+        self.seib = seib
+        self._scale = tuple(float(w) for w in bounds.width) if config.distance_scale is None else config.distance_scale
+
+    def _propose(self) -> np.ndarray | StopReason:
+        if not np.any(self.success_ & np.isfinite(self.returns_)):  # a safe method does not guess
+            return StopReason.NO_SAFE_POINT
+        acq = self._acquisition()
+        self.last_acquisition = acq
+        x, value = maximize(acq, self.bounds, rng=self.rng, config=self.config.maximizer, extra=self.X_)
+        few = np.sum(self.success_) < self.seib.trust_per_dim * self.bounds.dim
+        if few and not value >= self.seib.stop_value:  # too few successes to trust the gate: open it
+            acq = SEIB(acq.regression, acq.classifier, acq.best_return, acq.scale, self.seib, gated=False)
+            self.last_acquisition = acq
+            x, value = maximize(acq, self.bounds, rng=self.rng, config=self.config.maximizer, extra=self.X_)
+        if not value >= self.seib.stop_value:
+            return StopReason.NO_IMPROVEMENT  # nothing both plausible and safe is left, and no uncertain boundary
+        if _stop(self.config.stop_rule, x, self.X_, self.config.stop_distance, self._scale):
+            return StopReason.CONVERGED
+        return x
+
+    def _acquisition(self) -> SEIB:
+        ok = self.success_ & np.isfinite(self.returns_)
+        classifier = self.models.classifier(self.X_, self.success_)
+        regression = self.models.regression(self.X_[ok], self.returns_[ok])
+        best = float(np.max(self.returns_[ok]))
+        return SEIB(regression, classifier, best, return_scale(self.returns_[ok]), self.seib)

@@ -1,0 +1,88 @@
+"""The CORL default optimizer (SafeBOOptimizer): safe search, bad input, registration."""
+
+import numpy as np
+import pytest
+
+from blackbox_loop import C2, UNIT2, quadratic
+from corl.errors import InputError, StateError
+from corl.optimizers.base import StopReason
+from corl.optimizers.safe import SafeBOOptimizer, return_scale
+from corl.problem import Outcome
+
+
+def _loop(opt, rollout, n):
+    for _ in range(n):
+        if opt.done:
+            break
+        try:
+            x = opt.ask()
+        except StateError:  # converged
+            break
+        opt.tell(x, rollout(x))
+
+
+def test_finds_an_inner_optimum_with_failures_only_near_the_boundary():
+    rollout = quadratic(C2, fail_above=0.8)  # optimum (0.3, 0.7) inside, unsafe above x2 = 0.8
+    opt = SafeBOOptimizer(UNIT2, max_evals=30, seed=0)
+    start = np.array([0.6, 0.2])
+    opt.tell(start, rollout(start))
+    _loop(opt, rollout, 30)
+    x_best, r_best = opt.best
+    assert r_best > -0.01  # within 0.1 of C2
+    failed = opt.X_[~opt.success_]
+    assert np.all(failed[:, 1] < 0.8 + 0.1)  # no failure far past the boundary
+    assert len(failed) <= 5
+
+
+def test_all_failure_history_gets_a_clear_error_and_stays_usable():
+    rollout = quadratic(C2, fail_above=0.8)
+    opt = SafeBOOptimizer(UNIT2, max_evals=20, seed=0)
+    opt.tell(np.array([0.5, 0.9]), Outcome(False))
+    opt.tell(np.array([0.4, 0.95]), Outcome(False))
+    assert opt.done and opt.stop_reason is StopReason.NO_SAFE_POINT  # known before ask: a safe method never guesses
+    with pytest.raises(StateError, match="succeed"):
+        opt.ask()
+    start = np.array([0.5, 0.5])
+    opt.tell(start, rollout(start))
+    assert not opt.done and opt.stop_reason is None  # a success: the method decides again
+    x = opt.ask()
+    assert UNIT2.contains(x) and np.all(np.isfinite(x))
+
+
+def test_duplicate_points_keep_the_optimizer_usable():
+    rollout = quadratic(C2, fail_above=0.8)
+    opt = SafeBOOptimizer(UNIT2, max_evals=20, seed=0)
+    x0 = np.array([0.5, 0.5])
+    for _ in range(4):
+        opt.tell(x0, rollout(x0))
+    opt.tell(np.array([0.5, 0.9]), Outcome(False))
+    opt.tell(np.array([0.5, 0.9]), Outcome(False))
+    x = opt.ask()
+    assert UNIT2.contains(x) and np.all(np.isfinite(x))
+    assert np.min(np.linalg.norm(opt.X_ - x, axis=1)) > 1e-3  # a new point, not a repeat
+
+
+def test_nan_return_is_refused_and_loses_nothing():
+    opt = SafeBOOptimizer(UNIT2, max_evals=20, seed=0)
+    opt.tell(np.array([0.5, 0.5]), Outcome(True, 1.0))
+    with pytest.raises(InputError):
+        opt.tell(np.array([0.4, 0.5]), Outcome(True, float("nan")))
+    assert opt.n_evals == 1
+    assert np.all(np.isfinite(opt.ask()))
+
+
+def test_return_scale():
+    assert return_scale(np.array([1.0, 3.0])) == pytest.approx(1.0)
+    assert return_scale(np.array([-4.0])) == 4.0
+    assert return_scale(np.array([0.0, 0.0])) == 1.0
+
+
+def test_corl_is_registered_and_uses_the_safe_optimizer():
+    from corl.experiments.methods import DEFAULT_METHOD, METHODS, make_method
+    from corl.tasks.synthetic import SyntheticTask
+
+    assert DEFAULT_METHOD == "CORL" and "CORL" in METHODS
+    task = SyntheticTask(np.array([0.0, 0.5]))
+    learner = make_method("CORL", task, seed=0)
+    opt = learner.optimizer_factory(task.theta_bounds, np.zeros(1), np.random.default_rng(0))
+    assert isinstance(opt, SafeBOOptimizer)
