@@ -108,7 +108,7 @@ def imports_of(module: str, path: Path, modules: dict[str, Path]) -> list[Edge]:
                 package = ".".join(parts[:cut])
                 if not (module == package or module.startswith(package + ".")):
                     edges.append(Edge(module, package, node.lineno, implicit=True))
-    return edges
+    return list(dict.fromkeys(edges))  # `from p import a, b` names p once per line
 
 
 def layer_of(module: str) -> int | None:
