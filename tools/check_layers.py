@@ -50,8 +50,14 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("tasks", ("corl.tasks",)),  # the synthetic benchmark, the door, tasks by name
     ("store", ("corl.store",)),  # the SQLite run store
     ("session", ("corl.session",)),  # a learner bound to the store, exact resume
-    ("experiments", ("corl.experiments",)),  # studies, tables, figures, reports, sweeps
-    ("cli", ("corl.progress", "corl.arguments", "corl.cli")),  # the `corl` command
+    # experiments/, by what it produces: the bricks, then what is built of them
+    ("experiments.base", ("corl.experiments.backends", "corl.experiments.figures", "corl.experiments.tables")),
+    ("experiments.sweep", ("corl.experiments.sweep", "corl.experiments.run_output")),  # ground truth; a run's folder
+    ("experiments.studies", ("corl.experiments.synthetic", "corl.experiments.door")),  # Fig. 1, Fig. 3
+    ("experiments.html", ("corl.experiments.html",)),  # `corl report`
+    ("experiments", ("corl.experiments",)),  # the package, and the old path of corl.methods
+    ("cli.support", ("corl.progress", "corl.arguments")),  # progress display, argument checks
+    ("cli", ("corl.cli",)),  # the `corl` command
     ("facade", ("corl",)),  # corl/__init__: lazy names for `corl.optimize` and friends
 ]
 
