@@ -15,8 +15,8 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from corl.experiments.methods import MethodSettings  # noqa: E402
 from corl.experiments.synthetic import aggregate, sweep  # noqa: E402
+from corl.methods import MethodSettings  # noqa: E402
 from corl.optimizers.gpconfig import ClassifierConfig  # noqa: E402
 
 VARIANTS = {

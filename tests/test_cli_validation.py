@@ -1,4 +1,4 @@
-"""Bad input to the CLI (corl/cli.py, corl/arguments.py, corl/tasks/registry.py, corl/session.py):
+"""Bad input to the CLI (corl/cli/, corl/arguments.py, corl/tasks/registry.py, corl/session.py):
 one line ``error: ...``, exit 2, no traceback, no rollout, nothing created and the store unchanged."""
 
 from __future__ import annotations

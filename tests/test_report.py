@@ -1,4 +1,4 @@
-"""`corl report`: self-contained HTML pages of stored runs (corl/experiments/html_report.py, html_page.py)."""
+"""`corl report`: self-contained HTML pages of stored runs (corl/experiments/html/report.py, page.py)."""
 
 import base64
 import io
@@ -15,7 +15,7 @@ import pytest
 from typer.testing import CliRunner
 
 from corl.cli import app
-from corl.experiments.html_report import _existing_video
+from corl.experiments.html.report import _existing_video
 from corl.session import StoredRun
 from corl.store import RunStore
 from corl.tasks.registry import load_task

@@ -6,7 +6,8 @@ optimizer (:mod:`corl.optimizers`) improves the unknown return ``R(theta)`` of t
 parameters ``theta`` while avoiding failures ``S(theta) = 0``. :class:`corl.learner.CORL`
 (Algorithm 1) alternates the two and speaks ``ask`` / ``tell`` like every baseline.
 
-The packages, from the lowest layer up:
+The packages, from the lowest layer up (a module imports only its own layer and those before
+it, with no import cycles: ``tools/check_layers.py`` declares the order and ``make test`` checks it):
 
 * :mod:`corl.errors`, :mod:`corl.numerics`, :mod:`corl.problem`: exceptions, safe numerics, the
   problem of Eq. 2-5 and the records a learning loop exchanges;
@@ -14,13 +15,16 @@ The packages, from the lowest layer up:
   and the projection of Eq. 18;
 * :mod:`corl.gp`, :mod:`corl.acquisition`, :mod:`corl.optimizers`, :mod:`corl.policies`:
   Gaussian processes, PI / UCB / PIBU, the black-box methods, DMPs;
+* :mod:`corl.mujoco`: a MuJoCo kit for any robot (features of Eq. 6, IK, rollouts, video);
 * :mod:`corl.realise`: Eq. 18 with a task (realise a theta from ``w*``), the demonstration's check;
-* :mod:`corl.learner`, :mod:`corl.direct`, :mod:`corl.loop`: CORL and the methods over ``w``;
-* :mod:`corl.settings`: the settings a task gives (``MethodSettings`` and the configs);
+* :mod:`corl.loop`, :mod:`corl.learner`, :mod:`corl.direct`: the ask / roll out / tell loop,
+  CORL and the methods over ``w``;
+* :mod:`corl.settings`, :mod:`corl.methods`: the settings a task gives (``MethodSettings`` and
+  the configs) and the methods of Fig. 1 by name (``make_method``);
 * :mod:`corl.tasks`: the synthetic benchmark and the simulated PR2 door;
 * :mod:`corl.store`, :mod:`corl.session`: the run store and resumable runs;
-* :mod:`corl.experiments`, :mod:`corl.progress`, :mod:`corl.cli`: benchmarks, reports and the
-  ``corl`` command.
+* :mod:`corl.experiments`: the studies of Fig. 1 and Fig. 3, tables, figures, reports, sweeps;
+* :mod:`corl.progress`, :mod:`corl.arguments`, :mod:`corl.cli`: the ``corl`` command.
 
 The safe optimizer on its own (no trajectory, just a box and a start), loaded on first use so
 that ``import corl`` stays light::

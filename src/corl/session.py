@@ -34,7 +34,7 @@ def _build(task: Task, method: str, seed: int, corl_overrides: dict | None = Non
     """The learner; ``corl_overrides`` replace fields of the task's CORLConfig (``--rollout-every-step``)."""
     from dataclasses import replace
 
-    from corl.experiments.methods import make_method
+    from corl.methods import make_method
     from corl.settings import MethodSettings
 
     if not corl_overrides:

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from corl.experiments.figures import plot_learning_curve, plot_return_map
-from corl.experiments.methods import make_method
+from corl.methods import make_method
 from corl.tasks.synthetic import SyntheticTask
 
 

@@ -5,8 +5,8 @@ import pytest
 from typer.testing import CliRunner
 
 from corl.cli import app
-from corl.experiments.methods import PAPER_FIG1, make_method
 from corl.experiments.synthetic import aggregate, run_one, starts, sweep
+from corl.methods import PAPER_FIG1, make_method
 from corl.tasks.synthetic import SyntheticTask
 
 

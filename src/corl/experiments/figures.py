@@ -1,7 +1,13 @@
-"""Figures of a CORL run: the learning curve of J (Fig. 2b) and the learned return map (Fig. 2c).
+"""Every figure corl draws, in one place.
 
-Both take a finished (or running) :class:`corl.learner.CORL`; matplotlib is imported lazily and
-uses the Agg backend, so they work on machines without a display.
+* a CORL run (``corl run``, ``corl report``): the learning curve of J (Fig. 2b) and the learned
+  return map (Fig. 2c), from a finished (or running) :class:`corl.learner.CORL`;
+* a stored run (``corl report``): J and the return of every trial (:func:`plot_trials`);
+* the door study (``corl bench door``): failures and best return over trials (:func:`plot_trial_curves`);
+* the ground truth over theta (``corl sweep``): :func:`plot_sweep`.
+
+matplotlib is imported lazily and uses the Agg backend, so they work on machines without a
+display. Each writes a PNG and returns its path.
 """
 
 from __future__ import annotations
@@ -10,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["plot_learning_curve", "plot_return_map"]
+__all__ = ["plot_learning_curve", "plot_return_map", "plot_trials", "plot_trial_curves", "plot_sweep"]
 
 _MOTION_STEPS = ("demonstration", "optimization", "phase")
 
@@ -134,4 +140,105 @@ def plot_return_map(learner, path: str | Path, *, regression=None, classifier=No
         raise ValueError(f"a return map needs 1-D or 2-D theta, this task has m = {bounds.dim}")
     ax.set_title(title)
     ax.legend(loc="best", fontsize=8)
+    return _save(plt, fig, path)
+
+
+def plot_trials(records, J, path: str | Path) -> Path:
+    """J (top, log scale) and the return R (bottom) of every told trial, in the order they ran (``corl report``).
+
+    ``records``: the stored trials (:class:`corl.store.TrialRecord`, d of them); ``J``: (d,) their
+    analytic costs, NaN where unknown.
+
+    Failures have no return: they are red crosses along the bottom of the lower panel. The black
+    step line is the best return so far; dotted vertical lines separate Algorithm 1's rounds.
+    """
+    plt = _pyplot()
+    told = [(i, r) for i, r in enumerate(records) if r.outcome is not None]
+    x = np.array([r.index for _, r in told], dtype=float)
+    ok = np.array([r.outcome.success for _, r in told], dtype=bool)
+    R = np.array([np.nan if r.outcome.return_ is None else r.outcome.return_ for _, r in told], dtype=float)
+    J = np.array([J[i] for i, _ in told], dtype=float)
+    rounds = np.array([r.proposal.round for _, r in told])
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(10, 5.6), sharex=True)
+    finite = np.isfinite(J)
+    if finite.any():
+        Jp = np.maximum(J, 1e-12)  # J can reach exactly 0; keep the log axis readable
+        top.scatter(x[finite & ok], Jp[finite & ok], s=9, c="tab:blue", label="success")
+        top.scatter(x[finite & ~ok], Jp[finite & ~ok], s=22, c="tab:red", marker="x", label="failure")
+        top.set_yscale("log")
+        top.legend(loc="upper right", fontsize=8)
+    else:
+        top.text(0.5, 0.5, "J unavailable (task not loaded)", ha="center", va="center", transform=top.transAxes)
+    top.set_ylabel("J(w)")
+    top.set_title("J and return over trials")
+    good = ok & np.isfinite(R)
+    bottom.scatter(x[good], R[good], s=9, c="tab:blue", label="return of a success")
+    if good.any():
+        best_so_far = np.fmax.accumulate(np.where(good, R, -np.inf))
+        shown = np.isfinite(best_so_far)
+        bottom.step(x[shown], best_so_far[shown], where="post", color="k", lw=1.2, label="best so far")
+    if (~ok).any():
+        bottom.scatter(x[~ok], np.full((~ok).sum(), 0.04), transform=bottom.get_xaxis_transform(), s=30,
+                       c="tab:red", marker="x", label=f"failure ({(~ok).sum()}, no return)")
+    for change in x[1:][np.diff(rounds) != 0] if len(x) else ():
+        for ax in (top, bottom):
+            ax.axvline(change - 0.5, color="0.6", ls=":", lw=1)
+    bottom.set_xlabel("trial")
+    bottom.set_ylabel("return R")
+    bottom.legend(loc="upper left", fontsize=8)  # returns tend to rise: the early top is free
+    return _save(plt, fig, path)
+
+
+def plot_trial_curves(curves: dict[str, dict], path: str | Path) -> Path:
+    """Two panels over trials k: failures so far and highest R so far, mean ± std band per method."""
+    plt = _pyplot()
+    fig, (ax_f, ax_r) = plt.subplots(1, 2, figsize=(10, 4))
+    for m, c in curves.items():
+        k = np.asarray(c["k"])
+        for ax, key in ((ax_f, "failures"), (ax_r, "best")):
+            mean = np.asarray(c[f"{key}_mean"], dtype=float)
+            std = np.asarray(c[f"{key}_std"], dtype=float)
+            line, = ax.plot(k, mean, label=m)
+            ax.fill_between(k, mean - std, mean + std, color=line.get_color(), alpha=0.2)
+        stops = np.asarray(c["stopped"])
+        if stops.max() < len(k):  # mark where the runs stopped by their own rule
+            ax_f.axvline(float(np.mean(stops)), color=line.get_color(), ls=":", lw=1,
+                         label=f"{m} stops (mean {np.mean(stops):.0f} trials)")
+    ax_f.set(xlabel="trials", ylabel="failures so far", title="Failures (Fig. 3 over trials)")
+    ax_r.set(xlabel="trials", ylabel="highest R so far", title="Highest return")
+    ax_f.legend(loc="upper left")
+    ax_f.grid(alpha=0.3)
+    ax_r.grid(alpha=0.3)
+    return _save(plt, fig, path)
+
+
+def plot_sweep(sweep, path: str | Path, *, labels=("theta 1", "theta 2"), title: str = "") -> Path:
+    """The ground truth of ``corl sweep`` (a :class:`corl.experiments.sweep.Sweep`): R of the successful
+    rollouts over theta (a line for 1-D theta, a colour map for 2-D), failures as red crosses and the
+    anchor's theta as a star."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6.0, 4.5))
+    R = np.where(sweep.success, sweep.returns, np.nan)
+    if len(sweep.axes) == 1:
+        x = sweep.axes[0]
+        ax.plot(x, R, "o-", color="C0", label="R (successful rollouts)")
+        fails = ~sweep.success
+        ax.plot(x[fails], np.full(fails.sum(), np.nanmin(R) if np.isfinite(R).any() else 0.0), "x", color="C3",
+                label="failure")
+        ax.axvline(sweep.anchor_theta[0], color="k", ls="--", lw=1, label="anchor")
+        ax.set_xlabel(labels[0])
+        ax.set_ylabel("R")
+        ax.legend(loc="best", fontsize=8)
+    else:
+        t1, t2 = sweep.axes
+        image = ax.pcolormesh(t1, t2, R.T, shading="nearest", cmap="viridis")
+        fig.colorbar(image, ax=ax, label="R (successful rollouts)")
+        P = sweep.points
+        fail = ~sweep.success.ravel()
+        ax.plot(P[fail, 0], P[fail, 1], "x", color="C3", ms=4, label="failure")
+        ax.plot(*sweep.anchor_theta, "k*", ms=10, label="anchor")
+        ax.set_xlabel(labels[0])
+        ax.set_ylabel(labels[1])
+        ax.legend(loc="best", fontsize=8)
+    ax.set_title(title or f"success region and return: {int(sweep.success.sum())}/{sweep.success.size} succeed")
     return _save(plt, fig, path)

@@ -24,6 +24,7 @@ from typing import Callable
 import numpy as np
 
 from corl.errors import InputError
+from corl.experiments.figures import plot_sweep
 
 __all__ = ["Sweep", "TaskSpec", "parse_grid", "evaluate_points", "sweep_task", "write_sweep", "sweep_command",
            "write_raw_parameters"]
@@ -213,39 +214,8 @@ def write_sweep(sweep: Sweep, out: str | Path, *, labels=None, title: str = "") 
     if m > 2:
         files["png_skipped"] = f"no map for a theta with {m} coordinates (the CSV has every point)"
         return files
-    files["png"] = str(_plot(sweep, out / "sweep.png", labels, title))
+    files["png"] = str(plot_sweep(sweep, out / "sweep.png", labels=labels, title=title))
     return files
-
-
-def _plot(sweep: Sweep, path: Path, labels, title: str) -> Path:
-    from corl.experiments.figures import _pyplot, _save
-
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6.0, 4.5))
-    R = np.where(sweep.success, sweep.returns, np.nan)
-    if len(sweep.axes) == 1:
-        x = sweep.axes[0]
-        ax.plot(x, R, "o-", color="C0", label="R (successful rollouts)")
-        fails = ~sweep.success
-        ax.plot(x[fails], np.full(fails.sum(), np.nanmin(R) if np.isfinite(R).any() else 0.0), "x", color="C3",
-                label="failure")
-        ax.axvline(sweep.anchor_theta[0], color="k", ls="--", lw=1, label="anchor")
-        ax.set_xlabel(labels[0])
-        ax.set_ylabel("R")
-        ax.legend(loc="best", fontsize=8)
-    else:
-        t1, t2 = sweep.axes
-        image = ax.pcolormesh(t1, t2, R.T, shading="nearest", cmap="viridis")
-        fig.colorbar(image, ax=ax, label="R (successful rollouts)")
-        P = sweep.points
-        fail = ~sweep.success.ravel()
-        ax.plot(P[fail, 0], P[fail, 1], "x", color="C3", ms=4, label="failure")
-        ax.plot(*sweep.anchor_theta, "k*", ms=10, label="anchor")
-        ax.set_xlabel(labels[0])
-        ax.set_ylabel(labels[1])
-        ax.legend(loc="best", fontsize=8)
-    ax.set_title(title or f"success region and return: {int(sweep.success.sum())}/{sweep.success.size} succeed")
-    return _save(plt, fig, path)
 
 
 def sweep_command(task: str, grid: str, out, *, seed: int = 0, jobs: int = 1, backend: str = "loky",

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from corl.experiments.methods import PAPER_FIG1, MethodSettings, make_method
+from corl.methods import PAPER_FIG1, MethodSettings, make_method
 from corl.tasks.synthetic import W_OPT, SyntheticTask, distance_to_safe
 
 __all__ = ["FOUND_TOLERANCE", "RunMetrics", "starts", "run_one", "sweep", "aggregate"]

@@ -9,7 +9,7 @@ import pytest
 from typer.testing import CliRunner
 
 from corl.cli import app
-from corl.experiments.door_bench import SafeRegion, distance_to_safe
+from corl.experiments.door.safe_region import SafeRegion, distance_to_safe
 
 
 def _region() -> SafeRegion:
@@ -61,7 +61,7 @@ def test_tiny_door_sweep_writes_the_fig3_fields_and_two_sided_safe_regions(tmp_p
 @pytest.mark.slow
 def test_dmp_power_runs_from_a_successful_fitted_dmp():
     pytest.importorskip("mujoco")
-    from corl.experiments.door_dmp import run_dmp_power
+    from corl.experiments.door.dmp import run_dmp_power
 
     run = run_dmp_power(0, 4)
     assert run.method == "DMP+PoWER" and run.trials == 4 and run.rollouts == 5

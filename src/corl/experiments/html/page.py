@@ -1,7 +1,7 @@
 """The markup of ``corl report``: one HTML page per run, with inline CSS and no external reference.
 
 Every text taken from the store goes through :func:`html.escape`. Images and the video arrive as
-``data:`` URIs (see :mod:`corl.experiments.html_report`). A tiny inline script records, once the
+``data:`` URIs (see :mod:`corl.experiments.html.report`). A tiny inline script records, once the
 page has loaded, how many images decoded (``data-images-loaded`` / ``data-images-total`` on
 ``<body>``) and the video's frame size (``data-video-width``), so a headless browser can check the
 page without a person looking at it.
@@ -257,7 +257,7 @@ def _footer() -> str:
 
 
 def render_page(report) -> str:
-    """The self-contained HTML page of one :class:`~corl.experiments.html_report.RunReport`."""
+    """The self-contained HTML page of one :class:`~corl.experiments.html.report.RunReport`."""
     info = report.info
     title = f"Run {info.id}: {info.method} on {info.task} (seed {info.seed})"
     header = (f"<header><h1>{escape(title)}</h1><p>Store <code>{escape(str(report.store_path))}</code>, "

@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from corl.experiments.door_bench import DoorRun, _door_task, true_return
+from corl.experiments.door.runs import DoorRun, door_task, true_return
 
 __all__ = ["DMP_BASIS", "DMP_BOX_SCALES", "DMP_POWER_STD", "DMP_OVERLAP", "run_dmp_power"]
 
@@ -57,7 +57,7 @@ def run_dmp_power(seed: int, iterations: int = 150, *, task=None, box_scales: fl
     from corl.problem import Bounds
 
     t0 = time.perf_counter()
-    task = task or _door_task({})
+    task = task or door_task({})
     demo = task.demonstration()
     times, Y = task.reference(demo.w)
     dmp = DMP.fit(times, Y, n_basis=DMP_BASIS, config=DMPConfig(overlap=DMP_OVERLAP))

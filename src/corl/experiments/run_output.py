@@ -1,4 +1,10 @@
-"""The result of one learning run (``corl run``): ``summary.json`` and its human-readable text."""
+"""What one learning run (``corl run``) leaves in its output folder.
+
+* ``summary.json``: :func:`run_summary` (the fields every task has) and :func:`task_extras` (the
+  demonstration's numbers and what the best trial measured); :func:`run_text` says it in a few lines;
+* figures and a video: :func:`write_run_artifacts` (the learning curve, the return map and, for a
+  task that renders, the demonstration beside the learned motion).
+"""
 
 from __future__ import annotations
 
@@ -6,7 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["run_summary", "task_extras", "run_text"]
+from corl.experiments.figures import plot_learning_curve, plot_return_map
+
+__all__ = ["run_summary", "task_extras", "run_text", "write_run_artifacts"]
 
 
 def run_summary(task, method: str, seed: int, learner, seconds: float) -> dict:
@@ -70,3 +78,21 @@ def run_text(summary: dict, path: str | Path) -> str:
     lines.append("wrote " + ", ".join([str(path)] + [v for k, v in files.items() if not k.endswith("_skipped")]))
     lines += [f"{k}: {v}" for k, v in files.items() if k.endswith("_skipped")]
     return "\n".join(lines)
+
+
+def write_run_artifacts(task, learner, out: Path, *, video: bool = True) -> dict[str, str]:
+    """Learning curve (Fig. 2b), return map (Fig. 2c) and, for simulated tasks with a renderer,
+    a video of the demonstration beside the learned motion. Returns {name: path}."""
+    out = Path(out)
+    files = {"learning_curve": str(plot_learning_curve(learner, out / "learning_curve.png"))}
+    if getattr(learner, "optimizers", None) and task.theta_bounds.dim <= 2:
+        labels = getattr(task, "theta_labels", ("theta 1", "theta 2"))
+        files["return_map"] = str(plot_return_map(learner, out / "return_map.png", labels=labels))
+    render = getattr(task, "render_comparison", None)
+    if video and render is not None and learner.best is not None and learner.history:
+        try:
+            files["video"] = str(render(learner.history[0][0].w, learner.best.w, out / "demo_vs_learned.mp4"))
+        except Exception as exc:  # no OpenGL on this machine: the run's results stand without it
+            files["video_skipped"] = (f"{type(exc).__name__}: {exc}. Offscreen rendering needs EGL or "
+                                      "OSMesa (Debian: libegl1 libgl1); set MUJOCO_GL=egl or osmesa")
+    return files

@@ -8,7 +8,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from corl.experiments.door_curves import curves_table, plot_trial_curves, run_curves, trial_curves
+from corl.experiments.door.curves import run_curves, trial_curves
+from corl.experiments.figures import plot_trial_curves
+from corl.experiments.tables import curves_table
 
 
 def _run(method, success, returns, start=0.1, seed=0):
@@ -49,9 +51,9 @@ def test_trial_curves_average_over_seeds_and_print_at_fixed_counts(tmp_path):
 @pytest.mark.slow
 def test_door_runs_carry_their_trials_and_the_true_return():
     pytest.importorskip("mujoco")
-    from corl.experiments.door_bench import _door_task, run_corl
+    from corl.experiments.door.runs import door_task, run_corl
 
-    run = run_corl("CORL+CMA", 3, 4, task=_door_task({}))
+    run = run_corl("CORL+CMA", 3, 4, task=door_task({}))
     assert run.trial_success.shape == run.trial_returns.shape == (run.trials,)
     assert np.isnan(run.trial_returns[~run.trial_success]).all()
     assert np.isfinite(run.trial_returns[run.trial_success]).all()

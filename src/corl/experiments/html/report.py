@@ -33,7 +33,7 @@ import numpy as np
 from corl.errors import CorlError, InputError
 from corl.store import RunInfo, RunStore, StoreError, TrialRecord
 
-__all__ = ["RunReport", "collect_report", "write_reports", "plot_trials", "data_uri", "VIDEO_NAMES"]
+__all__ = ["RunReport", "collect_report", "write_reports", "data_uri", "VIDEO_NAMES"]
 
 VIDEO_NAMES = ("demo_vs_learned.mp4", "demo_vs_learned.gif")  # what `corl run` writes beside its store
 _MIME = {".png": "image/png", ".mp4": "video/mp4", ".gif": "image/gif"}
@@ -130,59 +130,14 @@ def _best_index(records: list[TrialRecord]) -> int | None:
 
 
 # -- figures ------------------------------------------------------------------------------------
-def plot_trials(report: RunReport, path: Path) -> Path:
-    """J (top, log scale) and the return R (bottom) of every told trial, in the order they ran.
-
-    Failures have no return: they are red crosses along the bottom of the lower panel. The black
-    step line is the best return so far; dotted vertical lines separate Algorithm 1's rounds.
-    """
-    from corl.experiments.figures import _pyplot, _save
-
-    plt = _pyplot()
-    told = [(i, r) for i, r in enumerate(report.records) if r.outcome is not None]
-    x = np.array([r.index for _, r in told], dtype=float)
-    ok = np.array([r.outcome.success for _, r in told], dtype=bool)
-    R = np.array([np.nan if r.outcome.return_ is None else r.outcome.return_ for _, r in told], dtype=float)
-    J = np.array([report.J[i] for i, _ in told], dtype=float)
-    rounds = np.array([r.proposal.round for _, r in told])
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(10, 5.6), sharex=True)
-    finite = np.isfinite(J)
-    if finite.any():
-        Jp = np.maximum(J, 1e-12)  # J can reach exactly 0; keep the log axis readable
-        top.scatter(x[finite & ok], Jp[finite & ok], s=9, c="tab:blue", label="success")
-        top.scatter(x[finite & ~ok], Jp[finite & ~ok], s=22, c="tab:red", marker="x", label="failure")
-        top.set_yscale("log")
-        top.legend(loc="upper right", fontsize=8)
-    else:
-        top.text(0.5, 0.5, "J unavailable (task not loaded)", ha="center", va="center", transform=top.transAxes)
-    top.set_ylabel("J(w)")
-    top.set_title("J and return over trials")
-    good = ok & np.isfinite(R)
-    bottom.scatter(x[good], R[good], s=9, c="tab:blue", label="return of a success")
-    if good.any():
-        best_so_far = np.fmax.accumulate(np.where(good, R, -np.inf))
-        shown = np.isfinite(best_so_far)
-        bottom.step(x[shown], best_so_far[shown], where="post", color="k", lw=1.2, label="best so far")
-    if (~ok).any():
-        bottom.scatter(x[~ok], np.full((~ok).sum(), 0.04), transform=bottom.get_xaxis_transform(), s=30,
-                       c="tab:red", marker="x", label=f"failure ({(~ok).sum()}, no return)")
-    for change in x[1:][np.diff(rounds) != 0] if len(x) else ():
-        for ax in (top, bottom):
-            ax.axvline(change - 0.5, color="0.6", ls=":", lw=1)
-    bottom.set_xlabel("trial")
-    bottom.set_ylabel("return R")
-    bottom.legend(loc="upper left", fontsize=8)  # returns tend to rise: the early top is free
-    return _save(plt, fig, path)
-
-
 def _figures(report: RunReport, task, learner, folder: Path) -> None:
     """Learning curves and the return map, as data URIs in ``report``."""
-    from corl.experiments.figures import plot_learning_curve, plot_return_map
+    from corl.experiments.figures import plot_learning_curve, plot_return_map, plot_trials
 
     if any(r.outcome is not None for r in report.records):
         report.curves = ("J(w) of every trial (top; values below 1e-12 are drawn at 1e-12) and its return "
                          "(bottom); failures in red, dotted lines separate the rounds of Algorithm 1.",
-                         data_uri(plot_trials(report, folder / "trials.png")))
+                         data_uri(plot_trials(report.records, report.J, folder / "trials.png")))
     if learner is None:
         return
     if getattr(learner, "J_history", None) and getattr(learner, "optimizers", None) is not None:
@@ -289,7 +244,7 @@ def write_reports(store: str | Path, out: str | Path, *, run_id: int | None = No
     Raises :class:`StoreError` for a missing or damaged store, an unknown run or an empty store, and
     :class:`InputError` for a ``task_spec`` that cannot be loaded.
     """
-    from corl.experiments.html_page import render_index, render_page
+    from corl.experiments.html.page import render_index, render_page
 
     store, out = Path(store), Path(out)
     if out.exists() and not out.is_dir():

@@ -1,10 +1,13 @@
-"""Plain-text tables of benchmark results, side by side with the paper's numbers."""
+"""Plain-text tables of benchmark results, side by side with the paper's numbers: Fig. 1 (synthetic),
+Fig. 3 (door) and the door's curves over trials."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-__all__ = ["synthetic_table", "door_table"]
+__all__ = ["synthetic_table", "door_table", "curves_table"]
 
 
 def _pm(mean, std, digits=2) -> str:
@@ -70,3 +73,23 @@ def door_table(table: dict[str, dict], *, iterations: int | None = None, dmp_ite
 
 def _fmt(value) -> str:
     return "-" if value is None else f"{value:.3f}"
+
+
+def curves_table(curves: dict[str, dict], at=(10, 25, 40, 60, 100)) -> str:
+    """The curves at a few trial counts, as text: failures and best R (mean ± std over seeds)."""
+    lines = ["Over trials (failures so far / highest R so far, mean ± std over seeds; a run that stopped "
+             "keeps its totals):"]
+    head = f"{'Method':<11} " + " ".join(f"{f'k = {k}':>24}" for k in at)
+    lines += [head, "-" * len(head)]
+    for m, c in curves.items():
+        cells = []
+        for k in at:
+            if k > len(c["k"]):
+                cells.append(f"{'-':>24}")
+                continue
+            i = k - 1
+            b = c["best_mean"][i]
+            best = "-" if b is None or not math.isfinite(b) else f"{b:.3f}"
+            cells.append(f"{c['failures_mean'][i]:5.1f} ± {c['failures_std'][i]:4.1f} / {best:>6}".rjust(24))
+        lines.append(f"{m:<11} " + " ".join(cells))
+    return "\n".join(lines)

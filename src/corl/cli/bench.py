@@ -1,0 +1,163 @@
+"""``corl bench synthetic``, ``corl bench door`` and ``corl sweep``: the studies of a simulated task
+(:mod:`corl.experiments`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from corl.arguments import NEW_PATHS
+from corl.cli.common import (
+    ADDRESS, BACKEND, JSON_OUT, LOG, QUIET, check_args, fail, method_list, print_json, progress_tracker, write_json,
+)
+
+__all__ = ["bench_synthetic", "bench_door", "sweep"]
+
+
+def bench_synthetic(
+    starts: int = typer.Option(100, help="random feasible starts per method"),
+    seed: int = typer.Option(0, help="seed of the starts and the methods"),
+    out: Path = typer.Option(Path("results/synthetic"), help="output folder for synthetic.json"),
+    methods: Optional[str] = typer.Option(None, help="comma-separated method names (default: the 8 of Fig. 1)"),
+    jobs: int = typer.Option(-1, help="parallel workers (-1: all cores)"),
+    backend: str = BACKEND, address: Optional[str] = ADDRESS,
+    quiet: bool = QUIET, json_out: bool = JSON_OUT, log: bool = LOG,
+) -> None:
+    """Reproduce Fig. 1: every method from the same random feasible starts."""
+    import math
+    import time
+
+    from corl.errors import CorlError
+    from corl.experiments.synthetic import FOUND_TOLERANCE, aggregate, sweep
+    from corl.experiments.tables import synthetic_table
+    from corl.methods import METHODS, PAPER_FIG1
+    from corl.tasks.synthetic import return_of
+    from corl.versions import library_versions
+
+    names = method_list(methods, default=list(PAPER_FIG1), allowed=METHODS)
+    if starts < 1:
+        fail("--starts must be at least 1")
+    check_args(seed=("--seed", seed), jobs=("--jobs", jobs), folder=("--out", out))
+    NEW_PATHS.track(out)
+    t0 = time.perf_counter()
+    with progress_tracker("bench synthetic", quiet=quiet, log=log, json_out=json_out) as tracker:
+        for name in names:
+            tracker.add_stage(name, total=starts)
+
+        def tick(r):  # one row per method: starts done, failures, best R = R(theta(w_best))
+            ret = None if r.best_w is None else return_of(math.atan2(r.best_w[1], r.best_w[0]))
+            tracker.update(r.method, advance=1, total=starts, failures=r.failures, ret=ret,
+                           note=f"start {r.start}: {'found' if r.found else 'not found'}, {r.failures} failures")
+
+        try:
+            results = sweep(names, starts, seed, jobs=jobs, backend=backend, address=address, progress=tick)
+        except CorlError as exc:
+            fail(str(exc))
+    wall = time.perf_counter() - t0
+    table = aggregate(results, names)
+    payload = {"methods": table, "found_tolerance": FOUND_TOLERANCE, "seed": seed, "starts": starts,
+               "wall_seconds": wall, "versions": library_versions()}
+    write_json(out / "synthetic.json", payload)
+    if json_out:
+        return print_json({**payload, "file": str(out / "synthetic.json")})
+    typer.echo(synthetic_table(table, FOUND_TOLERANCE))
+    typer.echo(f"\n{len(names)} methods x {starts} starts in {wall:.1f} s; wrote {out / 'synthetic.json'}")
+
+
+def bench_door(
+    seeds: int = typer.Option(10, help="runs per method, seeds 0 .. SEEDS-1"),
+    iterations: int = typer.Option(100, help="black-box trials of CORL's step 2 (one round)"),
+    dmp_iterations: int = typer.Option(150, help="PoWER trials of the DMP+PoWER baseline"),
+    out: Path = typer.Option(Path("results/door"), help="output folder for door.json and the safe-region cache"),
+    methods: Optional[str] = typer.Option(None, help="comma-separated: CORL+PIBU,CORL+CMA,DMP+PoWER (default all)"),
+    grid: str = typer.Option("25x15", help="safe-region grid over theta, N1xN2"),
+    force_noise: float = typer.Option(0.0, help="std (N) of a seeded error of the force sensor behind R; "
+                                                "0: exact simulator, every seed of a deterministic method alike"),
+    jobs: int = typer.Option(2, help="parallel workers (-1: all cores)"),
+    backend: str = BACKEND, address: Optional[str] = ADDRESS,
+    quiet: bool = QUIET, json_out: bool = JSON_OUT, log: bool = LOG,
+) -> None:
+    """Reproduce Fig. 3: the door task's highest return, failure rate and distance to the safe region."""
+    import time
+
+    from corl.errors import CorlError
+    from corl.experiments.door import DOOR_METHODS, door_sweep
+    from corl.experiments.figures import plot_trial_curves
+    from corl.experiments.tables import curves_table, door_table
+    from corl.tasks.door.task import FORCE_REFERENCE
+    from corl.versions import library_versions
+
+    names = method_list(methods, default=list(DOOR_METHODS), allowed=DOOR_METHODS)
+    if min(seeds, iterations, dmp_iterations) < 1:
+        fail("--seeds, --iterations and --dmp-iterations must be at least 1")
+    if not 0.0 <= force_noise < float("inf"):
+        fail(f"--force-noise is a standard deviation in N and must be finite and >= 0, got {force_noise}")
+    try:
+        n1, n2 = (int(v) for v in grid.lower().split("x"))
+    except ValueError:
+        fail(f"--grid must look like 25x15, got {grid!r}")
+    if min(n1, n2) < 2:
+        fail(f"--grid needs at least 2 points per axis, got {grid!r}")
+    check_args(jobs=("--jobs", jobs), folder=("--out", out))
+    NEW_PATHS.track(out)
+    t0 = time.perf_counter()
+    with progress_tracker("bench door", quiet=quiet, log=log, json_out=json_out) as tracker:
+        for name in names:
+            tracker.add_stage(name, total=seeds)
+
+        def tick(stage, done, total, note, run=None):  # one row per method, then one per safe region
+            if run is None:
+                return tracker.update(stage, done=done, total=total, note=note)
+            tracker.update(run.method, advance=1, total=seeds, failures=run.failures, ret=run.highest_return,
+                           note=f"seed {run.seed}: {run.failures}/{run.trials} failed")
+
+        try:
+            result = door_sweep(names, seeds, iterations, out=out, dmp_iterations=dmp_iterations, grid=(n1, n2),
+                                jobs=jobs, backend=backend, address=address, progress=tick, force_noise=force_noise)
+        except CorlError as exc:
+            fail(str(exc))
+    wall = time.perf_counter() - t0
+    regions = {r.key: {"grid": list(r.success.shape), "safe": int(r.success.sum()),
+                       "unrealised": int((~r.realised).sum()), "spacing": r.spacing.tolist()}
+               for r in result.regions.values()}
+    payload = {"methods": result.table, "seeds": seeds, "iterations": iterations, "dmp_iterations": dmp_iterations,
+               "force_noise": force_noise, "safe_regions": regions, "curves": result.curves, "wall_seconds": wall,
+               "versions": library_versions()}
+    write_json(out / "door.json", payload)
+    figure = plot_trial_curves(result.curves, out / "door_curves.png")
+    if json_out:
+        return print_json({**payload, "file": str(out / "door.json"), "figure": str(figure)})
+    typer.echo(door_table(result.table, iterations=iterations, dmp_iterations=dmp_iterations,
+                          force_reference=FORCE_REFERENCE,
+                          regions=result.regions))
+    typer.echo("\n" + curves_table(result.curves))
+    typer.echo(f"\n{len(names)} methods x {seeds} seeds in {wall:.1f} s; wrote {out / 'door.json'} and {figure}")
+
+
+def sweep(
+    task: str = typer.Argument(..., help="'synthetic', 'door', or an import path 'package.module:make_task'"),
+    grid: str = typer.Option(..., help="points per theta coordinate, e.g. 25,15 (one number: every coordinate)"),
+    out: Path = typer.Option(Path("results/sweep"), help="folder for sweep.csv, sweep.json and sweep.png"),
+    seed: int = typer.Option(0, help="seed the task factory gets (when it takes one)"),
+    jobs: int = typer.Option(1, help="parallel workers (-1: all cores)"),
+    backend: str = BACKEND, address: Optional[str] = ADDRESS,
+    quiet: bool = QUIET, json_out: bool = JSON_OUT, log: bool = LOG,
+) -> None:
+    """Ground truth of a simulated task: success and return over a theta grid, each theta realised
+    from the demonstration with Eq. 18 as the learner does it, then rolled out."""
+    from corl.errors import CorlError
+    from corl.experiments.sweep import sweep_command
+
+    try:
+        with progress_tracker(f"sweep {task}", quiet=quiet, log=log, json_out=json_out) as tracker:
+            payload = sweep_command(task, grid, out, seed=seed, jobs=jobs, backend=backend, address=address,
+                                    tracker=tracker)
+    except CorlError as exc:
+        fail(str(exc))
+    if json_out:
+        return print_json(payload)
+    typer.echo(f"{payload['successes']}/{payload['points']} grid points succeed ({payload['unrealised']} unrealisable); "
+               f"wrote {', '.join(v for k, v in payload['files'].items() if not k.endswith('_skipped'))}")
+

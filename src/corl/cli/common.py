@@ -1,0 +1,79 @@
+"""What the commands of ``corl`` share: the one-line error, the argument checks, JSON output, the
+progress display and the options of the long commands."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from corl.arguments import NEW_PATHS, check  # light: no numpy
+from corl.errors import CorlError
+
+__all__ = ["fail", "check_args", "method_list", "write_json", "progress_tracker", "print_json", "open_store",
+           "QUIET", "JSON_OUT", "LOG", "BACKEND", "ADDRESS"]
+
+
+def fail(message: str, code: int = 2) -> None:
+    """Print ``error: message`` and exit; what the command created is removed while still empty."""
+    typer.echo(f"error: {message}", err=True)
+    NEW_PATHS.remove_if_empty()
+    raise typer.Exit(code)
+
+
+def check_args(**args) -> None:
+    """:func:`corl.arguments.check` of the arguments, before any rollout or file; the first bad one exits 2."""
+    try:
+        check(**args)
+    except CorlError as exc:
+        fail(str(exc))
+
+
+def method_list(methods: Optional[str], *, default: list[str], allowed) -> list[str]:
+    """Comma-separated method names, checked against ``allowed``; ``default`` when None."""
+    names = default if methods is None else [m.strip() for m in methods.split(",") if m.strip()]
+    unknown = [m for m in names if m not in allowed]
+    if unknown:
+        fail(f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(allowed)}")
+    return names
+
+
+def write_json(path: Path, payload: dict) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(payload, indent=2, sort_keys=False) + "\n")
+    tmp.replace(path)
+
+
+# Output options of the long commands (corl.progress): progress on stderr, the result on stdout.
+QUIET = typer.Option(False, "--quiet", "-q", help="nothing on stderr but errors")
+JSON_OUT = typer.Option(False, "--json", help="stdout: one JSON document and nothing else")
+LOG = typer.Option(False, "--log", help="plain progress lines, not the live display (default if stderr is no terminal)")
+
+
+def progress_tracker(title: str, *, quiet: bool, log: bool, json_out: bool):
+    """The command's :class:`corl.progress.Tracker`; with ``--json`` stray prints go to stderr."""
+    from corl.progress import Tracker, choose_mode
+
+    return Tracker(choose_mode(quiet=quiet, log=log), title, protect_stdout=json_out)
+
+
+def print_json(payload: dict) -> None:
+    typer.echo(json.dumps(payload, indent=2))
+
+
+# Where the runs of a benchmark go (corl.experiments.backends).
+BACKEND = typer.Option("loky", help="where runs execute: loky (local processes), ray or dask (a cluster)")
+ADDRESS = typer.Option(None, help="a running Ray (auto, HOST:PORT) or Dask (tcp://HOST:8786) cluster to use; "
+                                  "default: start a local one with --jobs workers")
+
+
+def open_store(path: Path, *, readonly: bool = False, create: bool = True):
+    from corl.store import RunStore
+
+    if not readonly and create:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    return RunStore(path, readonly=readonly, create=create and not readonly)
+
