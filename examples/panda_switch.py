@@ -272,7 +272,7 @@ def make_task() -> PandaSwitchTask:
 
 
 if __name__ == "__main__":
-    from corl.experiments.methods import make_method
+    from corl.methods import make_method
 
     task = make_task()
     demo = task.demonstration()

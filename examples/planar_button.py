@@ -116,7 +116,7 @@ def make_task() -> PlanarButtonTask:
 
 
 if __name__ == "__main__":
-    from corl.experiments.methods import make_method
+    from corl.methods import make_method
 
     task = make_task()
     learner = make_method("CORL+PIBU", task, seed=0)

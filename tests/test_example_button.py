@@ -9,7 +9,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from examples.planar_button import fingertip, make_task  # noqa: E402
 
-from corl.experiments.methods import make_method  # noqa: E402
+from corl.methods import make_method  # noqa: E402
 
 
 def test_fingertip_jacobian():

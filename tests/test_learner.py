@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from corl.errors import DemonstrationFailedError, InputError, RolloutError, StateError
-from corl.experiments.methods import make_method
+from corl.methods import make_method
 from corl.learner import CORL, CORLConfig
 from corl.optimizers.base import BlackBoxOptimizer
 from corl.problem import Outcome

@@ -78,7 +78,7 @@ def test_return_scale():
 
 
 def test_corl_is_registered_and_uses_the_safe_optimizer():
-    from corl.experiments.methods import DEFAULT_METHOD, METHODS, make_method
+    from corl.methods import DEFAULT_METHOD, METHODS, make_method
     from corl.tasks.synthetic import SyntheticTask
 
     assert DEFAULT_METHOD == "CORL" and "CORL" in METHODS

@@ -12,7 +12,7 @@ The registry is a dict from name to builder; :func:`register_optimizer` adds one
         return MyOptimizer(bounds, max_evals=budget, seed=rng, start=start)
 
 The same builders make the black-box part of the paper's methods
-(:func:`corl.experiments.methods.make_method`), with the paper's settings.
+(:func:`corl.methods.make_method`), with the paper's settings.
 """
 
 from __future__ import annotations

@@ -69,7 +69,7 @@ def test_eq18_realises_a_new_theta_and_keeps_the_grasp(task):
 
 
 def test_short_learning_run_improves_J_and_keeps_success(task):
-    from corl.experiments.methods import make_method
+    from corl.methods import make_method
     from corl.learner import cost_of
 
     learner = make_method("CORL+PIBU", task, seed=0)
