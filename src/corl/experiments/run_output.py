@@ -32,6 +32,8 @@ def run_summary(task, method: str, seed: int, learner, seconds: float) -> dict:
         "J_final": None if best is None else best.J,
         "trials": len(history),
         "failures": sum(not o.success for _, o in history),
+        # why the learner stopped (corl.optimizers.base.StopReason); None for a run cut short
+        "stop_reason": None if getattr(learner, "stop_reason", None) is None else learner.stop_reason.value,
         "seconds": seconds,
         "versions": library_versions(),
     }
