@@ -69,12 +69,17 @@ class SEIBConfig:
     boundary_weight: float = 0.1  # w_b: weight of V on a gated stretch of the boundary
     stop_value: float = 1e-4  # stop when max a < stop_value (EI in units of the spread)
     trust_per_dim: int = 5  # the gate may stop the search once there are trust_per_dim * m successes
+    beyond_rel: float = 1.0  # beyond the band, R must plausibly beat R^+ by this fraction of the spread
+    ray_open: float = 0.97  # a ray point is not known to fail while p >= ray_open * p(far from data)
+    reach: tuple[float, ...] = (0.0, 0.25, 0.5, 0.75, 1.0)  # the gate looks this far beyond a band point (g_R length scales)
 
     def __post_init__(self) -> None:
         if not 0.0 < self.p_band <= self.p_inner < 1.0:
             raise InputError(f"SEIB needs 0 < p_band <= p_inner < 1, got {self.p_band}, {self.p_inner}")
         if min(self.xi_rel, self.beta, self.boundary_weight, self.stop_value, self.trust_per_dim) < 0:
             raise InputError("xi_rel, beta, boundary_weight and stop_value must be >= 0")
+        if len(self.reach) == 0 or min(self.reach) < 0:
+            raise InputError(f"reach needs at least one distance, all >= 0, got {self.reach}")
 
 
 class SEIB:
@@ -94,12 +99,17 @@ class SEIB:
     """
 
     def __init__(self, regression, classifier, best_return: float, scale: float,
-                 config: SEIBConfig = SEIBConfig(), *, gated: bool = True) -> None:
+                 config: SEIBConfig = SEIBConfig(), *, gated: bool = True, beyond: bool = False,
+                 box=None) -> None:
         if not (np.isfinite(scale) and scale > 0):
             raise InputError(f"scale must be positive and finite, got {scale}")
         self.regression, self.classifier = regression, classifier
         self.best_return, self.scale, self.config = float(best_return), float(scale), config
-        self.gated = bool(gated)
+        self.gated, self.beyond = bool(gated), bool(beyond)
+        self.box = None if box is None else (np.asarray(box[0], dtype=float), np.asarray(box[1], dtype=float))
+        self.incumbent = self.best_return  # the gate's R^+: the best posterior mean at the data, <= R^+
+        if regression is not None and len(getattr(regression, "X_", ())):
+            self.incumbent = min(self.best_return, float(np.max(regression.predict(regression.X_)[0])))
 
     def parts(self, X: np.ndarray) -> dict[str, np.ndarray]:
         """Every term at candidates ``X`` (s, m): value, ei, ucb_gate, boundary, inner, band, proba."""
@@ -115,13 +125,65 @@ class SEIB:
         else:
             mu, var = self.regression.predict(X)
             ei = expected_improvement(mu, var, self.best_return + xi) / self.scale  # EI with margin xi
-            gate = mu + cfg.beta * np.sqrt(var) > self.best_return + xi  # UCB_R above R^+ + xi
-            if not self.gated:
-                gate = np.ones(len(X), dtype=bool)
+            gate = np.ones(len(X), dtype=bool)
+            if self.gated and self.beyond:  # UCB_R on the ray beyond the band point
+                gate = band & (self.reach_ucb(X, band) > self.incumbent + cfg.beyond_rel * self.scale)
+            elif self.gated:  # UCB_R at the band point
+                gate = mu + cfg.beta * np.sqrt(var) > self.best_return + xi
         edge = np.where(band & gate, np.maximum(ei, cfg.boundary_weight * boundary), 0.0)
         value = np.where(inner, ei, 0.0) + edge
         return {"value": value, "ei": ei, "ucb_gate": gate, "boundary": boundary, "inner": inner,
                 "band": band, "proba": p}
+
+    def outward(self, X: np.ndarray) -> np.ndarray:
+        """Unit outward normals of the safe set at ``X`` (s, m) -> (s, m): ``-grad mu_g / |grad mu_g|``.
+
+        Central differences of g_S's latent mean with a step of 1e-3 of its length scales; where
+        the gradient vanishes the normal is 0 (only the point itself is then looked at).
+        """
+        X = np.asarray(X, dtype=float)
+        s, m = X.shape
+        h = 1e-3 * np.broadcast_to(np.asarray(self.classifier.kernel.lengthscales, dtype=float), (m,))
+        shifted = np.concatenate([X + h[j] * np.eye(m)[j] for j in range(m)]
+                                 + [X - h[j] * np.eye(m)[j] for j in range(m)])
+        g = self.classifier.predict_latent(shifted)[0].reshape(2, m, s)
+        grad = ((g[0] - g[1]) / (2.0 * h[:, None])).T  # (s, m)
+        norm = np.linalg.norm(grad, axis=1, keepdims=True)
+        return np.where(norm > 0, -grad / np.where(norm > 0, norm, 1.0), 0.0)
+
+    def reach_ucb(self, X: np.ndarray, where: np.ndarray | None = None) -> np.ndarray:
+        """``max_k UCB_R(theta + d_k l n)`` over ``d_k`` in ``reach``: (s, m) -> (s,); -inf off ``where``.
+
+        ``n`` is the outward normal (:meth:`outward`) and ``d_k l`` a distance of ``d_k`` of
+        g_R's length scales along it (``|step / l| = d_k``, ARD); points are clipped to nothing:
+        the return model is asked how high R may be just beyond the boundary band.
+        """
+        X = np.asarray(X, dtype=float)
+        out = np.full(len(X), -np.inf)
+        idx = np.flatnonzero(np.ones(len(X), dtype=bool) if where is None else where)
+        if idx.size == 0:
+            return out
+        Xb = X[idx]
+        n = self.outward(Xb)
+        m = X.shape[1]
+        ls = np.minimum(np.broadcast_to(np.asarray(self.regression.kernel.lengthscales, dtype=float), (m,)),
+                        np.broadcast_to(np.asarray(self.classifier.kernel.lengthscales, dtype=float), (m,)))
+        unit = np.linalg.norm(n / ls, axis=1, keepdims=True)
+        step = np.where(unit > 0, n / np.where(unit > 0, unit, 1.0), 0.0)  # one length scale along n
+        pts = np.concatenate([Xb + d * step for d in self.config.reach])
+        mu, var = self.regression.predict(pts)
+        ucb = (mu + self.config.beta * np.sqrt(floor_variance(var))).reshape(len(self.config.reach), -1)
+        g, g_var = self.classifier.predict_latent(pts)
+        sf = float(self.classifier.kernel.signal_std)
+        p_open = expected_sigmoid(np.array([self.classifier.prior_mean]), np.array([sf * sf]))[0]
+        open_ = (expected_sigmoid(g, g_var) >= self.config.ray_open * p_open).reshape(ucb.shape)  # not known to fail
+        if self.box is not None:
+            lo, hi = self.box
+            open_ &= np.all((pts >= lo) & (pts <= hi), axis=1).reshape(ucb.shape)
+        open_[0] = True  # the band point itself
+        open_ = np.cumprod(open_, axis=0).astype(bool)  # the ray ends where failure is known
+        out[idx] = np.where(open_, ucb, -np.inf).max(axis=0)
+        return out
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
         """Acquisition values at candidates ``X`` (s, m) -> (s,)."""
