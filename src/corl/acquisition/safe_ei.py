@@ -69,7 +69,7 @@ class SEIBConfig:
     boundary_weight: float = 0.1  # w_b: weight of V on a gated stretch of the boundary
     stop_value: float = 1e-4  # stop when max a < stop_value (EI in units of the spread)
     trust_per_dim: int = 5  # the gate may stop the search once there are trust_per_dim * m successes
-    beyond_rel: float = 1.0  # beyond the band, R must plausibly beat R^+ by this fraction of the spread
+    beyond_rel: float = 0.5  # beyond the band, R must plausibly beat R^+ by this fraction of the spread
     ray_open: float = 0.97  # a ray point is not known to fail while p >= ray_open * p(far from data)
     reach: tuple[float, ...] = (0.0, 0.25, 0.5, 0.75, 1.0)  # the gate looks this far beyond a band point (g_R length scales)
 
