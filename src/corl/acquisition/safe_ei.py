@@ -25,6 +25,24 @@ with ``V = sqrt(V_gS) / sf`` (PIBU's normalised boundary uncertainty, Eq. 17's s
   (``gated=False``): a return model fitted on a few clustered points (e.g. along a level set of
   R) can be wrong about every unexplored edge, and stopping there would strand the search.
 
+Looking beyond the band (``beyond=True``). The gate above asks ``UCB_R`` at the band point, just
+beside the data; a return model fitted on points clustered at a local peak is confident there
+that R is lower, so the gate closes and the search stops although R may be higher a little
+further out (a GP that reverts to its prior mean). When the band-point gate leaves nothing
+(``max a < stop_value`` or the maximiser lands on a sampled point), the optimizer asks again with
+
+    gate(theta) = max_k UCB_R(theta + d_k l n(theta)) > R^+_mu + beyond_rel * scale,
+
+    n(theta) = -grad mu_g / |grad mu_g|   (outward normal of the safe set, from g_S's latent mean)
+    l        = min(l_R, l_S) per dimension, d_k in ``reach`` (0 .. 1 length scale)
+    R^+_mu   = min(R^+, max of mu_R at the data)  (a noise-explaining fit cannot hide behind one
+               lucky sample)
+
+where the ray ends at the first point known to fail (within ``ray_open`` g_S length scales of a
+failed trial: g_S's negative prior mean makes its ``p`` hardly lower there than in unexplored
+space, so the failures themselves are asked) and at the box. The margin ``beyond_rel * scale`` is larger than ``xi``: the step risks a failure
+in the band, so it must promise a real gain, not a sliver along an edge already mapped.
+
 Glossary
 --------
 mu, var   : mean and latent variance of g_R at candidates, (s,)
@@ -69,15 +87,17 @@ class SEIBConfig:
     boundary_weight: float = 0.1  # w_b: weight of V on a gated stretch of the boundary
     stop_value: float = 1e-4  # stop when max a < stop_value (EI in units of the spread)
     trust_per_dim: int = 5  # the gate may stop the search once there are trust_per_dim * m successes
-    beyond_rel: float = 0.5  # beyond the band, R must plausibly beat R^+ by this fraction of the spread
-    ray_open: float = 0.97  # a ray point is not known to fail while p >= ray_open * p(far from data)
-    reach: tuple[float, ...] = (0.0, 0.25, 0.5, 0.75, 1.0)  # the gate looks this far beyond a band point (g_R length scales)
+    beyond_rel: float = 0.5  # looking beyond: R must plausibly beat R^+ by this fraction of the spread
+    ray_open: float = 1.0  # the ray ends within ray_open g_S length scales of a failed trial
+    reach: tuple[float, ...] = (0.0, 0.25, 0.5, 0.75, 1.0)  # ray points beyond a band point, in length scales
 
     def __post_init__(self) -> None:
         if not 0.0 < self.p_band <= self.p_inner < 1.0:
             raise InputError(f"SEIB needs 0 < p_band <= p_inner < 1, got {self.p_band}, {self.p_inner}")
-        if min(self.xi_rel, self.beta, self.boundary_weight, self.stop_value, self.trust_per_dim) < 0:
-            raise InputError("xi_rel, beta, boundary_weight and stop_value must be >= 0")
+        if min(self.xi_rel, self.beta, self.boundary_weight, self.stop_value, self.trust_per_dim,
+               self.beyond_rel, self.ray_open) < 0:
+            raise InputError("xi_rel, beta, boundary_weight, stop_value, trust_per_dim, beyond_rel and ray_open "
+                             "must be >= 0 (beyond_rel=inf never looks beyond the band)")
         if len(self.reach) == 0 or min(self.reach) < 0:
             raise InputError(f"reach needs at least one distance, all >= 0, got {self.reach}")
 
@@ -96,6 +116,10 @@ class SEIB:
     gated : gate the boundary term by ``UCB_R > R^+ + xi``; ``False`` gives the ungated boundary
         term (PIBU's, weighted by ``w_b``), which the optimizer falls back to when the gated
         acquisition has nothing left: the return model may be wrong about an unexplored edge.
+    beyond : gate a band point by the return just beyond it instead (:meth:`reach_ucb`):
+        ``max_k UCB_R(theta_k) > R^+_mu + beyond_rel * scale`` over the ray points ``theta_k``
+        that are not known to fail; the optimizer asks this when the band-point gate would stop.
+    box : ``(lower, upper)`` of the search box, (m,) each; ray points outside it do not count.
     """
 
     def __init__(self, regression, classifier, best_return: float, scale: float,
@@ -154,9 +178,10 @@ class SEIB:
     def reach_ucb(self, X: np.ndarray, where: np.ndarray | None = None) -> np.ndarray:
         """``max_k UCB_R(theta + d_k l n)`` over ``d_k`` in ``reach``: (s, m) -> (s,); -inf off ``where``.
 
-        ``n`` is the outward normal (:meth:`outward`) and ``d_k l`` a distance of ``d_k`` of
-        g_R's length scales along it (``|step / l| = d_k``, ARD); points are clipped to nothing:
-        the return model is asked how high R may be just beyond the boundary band.
+        ``n`` is the outward normal (:meth:`outward`) and ``d_k l`` a distance of ``d_k`` length
+        scales along it, ``l = min(l_R, l_S)`` per dimension (``|step / l| = d_k``, ARD). The ray
+        ends at its first point within ``ray_open`` g_S length scales of a failed trial and at the
+        box; the band point itself (``d = 0``) always counts.
         """
         X = np.asarray(X, dtype=float)
         out = np.full(len(X), -np.inf)
@@ -173,10 +198,12 @@ class SEIB:
         pts = np.concatenate([Xb + d * step for d in self.config.reach])
         mu, var = self.regression.predict(pts)
         ucb = (mu + self.config.beta * np.sqrt(floor_variance(var))).reshape(len(self.config.reach), -1)
-        g, g_var = self.classifier.predict_latent(pts)
-        sf = float(self.classifier.kernel.signal_std)
-        p_open = expected_sigmoid(np.array([self.classifier.prior_mean]), np.array([sf * sf]))[0]
-        open_ = (expected_sigmoid(g, g_var) >= self.config.ray_open * p_open).reshape(ucb.shape)  # not known to fail
+        open_ = np.ones(ucb.shape, dtype=bool)
+        failed = self.classifier.X_[self.classifier.y_ < 0]
+        if len(failed):  # known to fail: within ray_open g_S length scales of a failed trial
+            ls_s = np.broadcast_to(np.asarray(self.classifier.kernel.lengthscales, dtype=float), (m,))
+            d2 = np.min(np.sum(((pts[:, None, :] - failed[None]) / ls_s) ** 2, axis=2), axis=1)
+            open_ = (d2 >= self.config.ray_open ** 2).reshape(ucb.shape)
         if self.box is not None:
             lo, hi = self.box
             open_ &= np.all((pts >= lo) & (pts <= hi), axis=1).reshape(ucb.shape)
