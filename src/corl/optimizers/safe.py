@@ -3,8 +3,9 @@
 :class:`SafeBOOptimizer` fits g_S on every point and g_R on the successes (MAP hyperparameters
 in unit-box units, :mod:`corl.gp.fitting`, warm-started from the previous ask), maximises SEIB
 (:mod:`corl.acquisition.safe_ei`) and stops when nothing is left that is both plausible and safe
-(``max a < stop_value``; with few successes also with the boundary gate open) or the
-maximiser lands on a sampled point. It needs one known success
+(``max a < stop_value``) or the maximiser lands on a sampled point -- but only after asking again
+with the boundary gate looking beyond the band (``SEIB(beyond=True)``: may R be higher a length
+scale further out, where no failure is known?) and, with few successes, with the gate open. It needs one known success
 (the start) before its first ask: a safe method never guesses a first point.
 """
 
