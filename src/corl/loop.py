@@ -65,7 +65,7 @@ class OptimizeResult:
     optimizer: BlackBoxOptimizer
 
 
-def optimize(f: Callable[[np.ndarray], object], bounds, start, *, method: str = "PIBU", budget: int = 50,
+def optimize(f: Callable[[np.ndarray], object], bounds, start, *, method: str = "CORL", budget: int = 50,
              seed=None, settings=None, callback: Callable[[np.ndarray, Outcome], None] | None = None) -> OptimizeResult:
     """Maximise a black-box ``f`` over a box with one of corl's methods, from ``start``.
 
@@ -76,7 +76,7 @@ def optimize(f: Callable[[np.ndarray], object], bounds, start, *, method: str = 
     Raises
     ------
     InputError : bad arguments (see ``make_optimizer``), a start that fails under a safe method
-        (PIBU, SAL grow the safe set from it), or a bad value from ``f`` (a NaN return, a success
+        (CORL, PIBU, SAL grow the safe set from it), or a bad value from ``f`` (a NaN return, a success
         without a return, ...).
     RolloutError : ``f`` raised.
     In both cases the error's ``optimizer`` attribute holds the optimizer, every trial so far told

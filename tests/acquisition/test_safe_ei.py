@@ -75,3 +75,59 @@ def test_bad_settings_are_refused():
     reg, clf = _models()
     with pytest.raises(InputError, match="scale"):
         SEIB(reg, clf, 1.0, scale=0.0)
+
+
+def _local_peak_models():
+    """1-D on [0, 1]: successes clustered at a local peak x = 0.6, one failure at 0.85 (right).
+
+    The return GP (l = 0.1, sf = 1, prior mean 0) is sure R is lower at the band points beside
+    the cluster, but a length scale further left, where nothing was tried, R may be up to 2.
+    """
+    X = np.array([0.5, 0.55, 0.6, 0.65, 0.7, 0.85])[:, None]
+    s = np.array([True, True, True, True, True, False])
+    r = np.array([0.6, 0.9, 1.0, 0.9, 0.6, np.nan])
+    clf = GPClassifier(SquaredExponential(0.1, 10.0), prior_mean=-7.0).fit(X, s)
+    reg = GPRegression(SquaredExponential(0.1, 1.0), 0.01, prior_mean=0.0).fit(X[s], r[s])
+    return reg, clf
+
+
+def test_looking_beyond_the_band_opens_the_unexplored_side_only():
+    reg, clf = _local_peak_models()
+    grid = np.linspace(0, 1, 2001)[:, None]
+    point = SEIB(reg, clf, best_return=1.0, scale=0.16).parts(grid)
+    band = point["band"]
+    left, right = band & (grid[:, 0] < 0.6), band & (grid[:, 0] > 0.6)
+    assert np.any(left) and np.any(right)
+    assert np.max(point["value"][band]) < 1e-6  # the band-point gate closes both sides: a stop
+    beyond = SEIB(reg, clf, best_return=1.0, scale=0.16, beyond=True, box=([0.0], [1.0])).parts(grid)
+    outer = left & (grid[:, 0] < np.median(grid[left, 0]))  # the outer half of the left band
+    assert np.all(beyond["ucb_gate"][outer]) and np.min(beyond["value"][outer]) > 0.01  # unexplored: go on
+    assert not np.any(beyond["ucb_gate"][right])  # the ray to the right ends at the failure at 0.85
+    assert np.all(beyond["value"][~band & ~beyond["inner"]] == 0.0)  # still only band points proposed
+
+
+def test_looking_beyond_needs_a_real_gain_and_stays_in_the_box():
+    reg, clf = _local_peak_models()
+    grid = np.linspace(0, 1, 2001)[:, None]
+    band = SEIB(reg, clf, 1.0, 0.16).parts(grid)["band"] & (grid[:, 0] < 0.6)
+    # R^+ above the prior UCB (0 + 2 * 1) by the margin: nothing beyond can beat it
+    high = SEIB(reg, clf, 1.0, 0.16, SEIBConfig(beyond_rel=7.0), beyond=True).parts(grid)
+    assert not np.any(high["ucb_gate"][band])
+    # a box ending at the band leaves only the band point itself, where the model is sure R is lower
+    lo = float(grid[band, 0].min())
+    boxed = SEIB(reg, clf, 1.0, 0.16, beyond=True, box=([lo - 1e-9], [1.0])).parts(grid)
+    assert not boxed["ucb_gate"][np.flatnonzero(band)[0]]
+
+
+def test_outward_normal_points_away_from_the_safe_set():
+    reg, clf = _local_peak_models()
+    acq = SEIB(reg, clf, 1.0, 0.16)
+    n = acq.outward(np.array([[0.4], [0.8]]))
+    np.testing.assert_allclose(n, [[-1.0], [1.0]])
+
+
+def test_beyond_settings_are_checked():
+    with pytest.raises(InputError, match="beyond_rel"):
+        SEIBConfig(beyond_rel=-1.0)
+    with pytest.raises(InputError, match="reach"):
+        SEIBConfig(reach=())

@@ -86,3 +86,29 @@ def test_corl_is_registered_and_uses_the_safe_optimizer():
     learner = make_method("CORL", task, seed=0)
     opt = learner.optimizer_factory(task.theta_bounds, np.zeros(1), np.random.default_rng(0))
     assert isinstance(opt, SafeBOOptimizer)
+
+
+def _local_peak_rollout(x):
+    """The paper's 1-D synthetic problem: safe on (-1.5, 2.5), R = -x^2 / 2 + cos 3x (global max at 0)."""
+    x = float(x[0])
+    if not -1.5 < x < 2.5:
+        return Outcome(False, None)
+    return Outcome(True, -0.5 * x * x + np.cos(3.0 * x))
+
+
+def test_looks_beyond_the_band_instead_of_stopping_at_a_local_peak():
+    from corl.acquisition.safe_ei import SEIBConfig
+    from corl.problem import Bounds
+
+    bounds = Bounds(np.array([-np.pi]), np.array([np.pi]))
+    runs = {}
+    for name, seib in [("band only", SEIBConfig(beyond_rel=np.inf)), ("beyond", SEIBConfig())]:
+        opt = SafeBOOptimizer(bounds, seib=seib, max_evals=40, seed=0)
+        opt.tell(np.array([1.8]), _local_peak_rollout(np.array([1.8])))
+        _loop(opt, _local_peak_rollout, 39)
+        runs[name] = opt
+    old, new = runs["band only"], runs["beyond"]
+    assert abs(old.best[0][0] - 1.88) < 0.1 and old.n_evals < 10  # the band-point gate stops at the local peak
+    assert abs(new.best[0][0]) < 0.05 and new.best[1] > 0.99  # looking beyond crosses the valley to 0
+    assert np.sum(~new.success_) <= 2 and new.n_evals < 40  # ... with few failures, and still stops
+    assert new.stop_reason in (StopReason.NO_IMPROVEMENT, StopReason.CONVERGED)

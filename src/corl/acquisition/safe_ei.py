@@ -25,6 +25,24 @@ with ``V = sqrt(V_gS) / sf`` (PIBU's normalised boundary uncertainty, Eq. 17's s
   (``gated=False``): a return model fitted on a few clustered points (e.g. along a level set of
   R) can be wrong about every unexplored edge, and stopping there would strand the search.
 
+Looking beyond the band (``beyond=True``). The gate above asks ``UCB_R`` at the band point, just
+beside the data; a return model fitted on points clustered at a local peak is confident there
+that R is lower, so the gate closes and the search stops although R may be higher a little
+further out (a GP that reverts to its prior mean). When the band-point gate leaves nothing
+(``max a < stop_value`` or the maximiser lands on a sampled point), the optimizer asks again with
+
+    gate(theta) = max_k UCB_R(theta + d_k l n(theta)) > R^+_mu + beyond_rel * scale,
+
+    n(theta) = -grad mu_g / |grad mu_g|   (outward normal of the safe set, from g_S's latent mean)
+    l        = min(l_R, l_S) per dimension, d_k in ``reach`` (0 .. 1 length scale)
+    R^+_mu   = min(R^+, max of mu_R at the data)  (a noise-explaining fit cannot hide behind one
+               lucky sample)
+
+where the ray ends at the first point known to fail (within ``ray_open`` g_S length scales of a
+failed trial: g_S's negative prior mean makes its ``p`` hardly lower there than in unexplored
+space, so the failures themselves are asked) and at the box. The margin ``beyond_rel * scale`` is larger than ``xi``: the step risks a failure
+in the band, so it must promise a real gain, not a sliver along an edge already mapped.
+
 Glossary
 --------
 mu, var   : mean and latent variance of g_R at candidates, (s,)
@@ -69,12 +87,19 @@ class SEIBConfig:
     boundary_weight: float = 0.1  # w_b: weight of V on a gated stretch of the boundary
     stop_value: float = 1e-4  # stop when max a < stop_value (EI in units of the spread)
     trust_per_dim: int = 5  # the gate may stop the search once there are trust_per_dim * m successes
+    beyond_rel: float = 0.5  # looking beyond: R must plausibly beat R^+ by this fraction of the spread
+    ray_open: float = 1.0  # the ray ends within ray_open g_S length scales of a failed trial
+    reach: tuple[float, ...] = (0.0, 0.25, 0.5, 0.75, 1.0)  # ray points beyond a band point, in length scales
 
     def __post_init__(self) -> None:
         if not 0.0 < self.p_band <= self.p_inner < 1.0:
             raise InputError(f"SEIB needs 0 < p_band <= p_inner < 1, got {self.p_band}, {self.p_inner}")
-        if min(self.xi_rel, self.beta, self.boundary_weight, self.stop_value, self.trust_per_dim) < 0:
-            raise InputError("xi_rel, beta, boundary_weight and stop_value must be >= 0")
+        if min(self.xi_rel, self.beta, self.boundary_weight, self.stop_value, self.trust_per_dim,
+               self.beyond_rel, self.ray_open) < 0:
+            raise InputError("xi_rel, beta, boundary_weight, stop_value, trust_per_dim, beyond_rel and ray_open "
+                             "must be >= 0 (beyond_rel=inf never looks beyond the band)")
+        if len(self.reach) == 0 or min(self.reach) < 0:
+            raise InputError(f"reach needs at least one distance, all >= 0, got {self.reach}")
 
 
 class SEIB:
@@ -91,15 +116,24 @@ class SEIB:
     gated : gate the boundary term by ``UCB_R > R^+ + xi``; ``False`` gives the ungated boundary
         term (PIBU's, weighted by ``w_b``), which the optimizer falls back to when the gated
         acquisition has nothing left: the return model may be wrong about an unexplored edge.
+    beyond : gate a band point by the return just beyond it instead (:meth:`reach_ucb`):
+        ``max_k UCB_R(theta_k) > R^+_mu + beyond_rel * scale`` over the ray points ``theta_k``
+        that are not known to fail; the optimizer asks this when the band-point gate would stop.
+    box : ``(lower, upper)`` of the search box, (m,) each; ray points outside it do not count.
     """
 
     def __init__(self, regression, classifier, best_return: float, scale: float,
-                 config: SEIBConfig = SEIBConfig(), *, gated: bool = True) -> None:
+                 config: SEIBConfig = SEIBConfig(), *, gated: bool = True, beyond: bool = False,
+                 box=None) -> None:
         if not (np.isfinite(scale) and scale > 0):
             raise InputError(f"scale must be positive and finite, got {scale}")
         self.regression, self.classifier = regression, classifier
         self.best_return, self.scale, self.config = float(best_return), float(scale), config
-        self.gated = bool(gated)
+        self.gated, self.beyond = bool(gated), bool(beyond)
+        self.box = None if box is None else (np.asarray(box[0], dtype=float), np.asarray(box[1], dtype=float))
+        self.incumbent = self.best_return  # the gate's R^+: the best posterior mean at the data, <= R^+
+        if regression is not None and len(getattr(regression, "X_", ())):
+            self.incumbent = min(self.best_return, float(np.max(regression.predict(regression.X_)[0])))
 
     def parts(self, X: np.ndarray) -> dict[str, np.ndarray]:
         """Every term at candidates ``X`` (s, m): value, ei, ucb_gate, boundary, inner, band, proba."""
@@ -115,13 +149,68 @@ class SEIB:
         else:
             mu, var = self.regression.predict(X)
             ei = expected_improvement(mu, var, self.best_return + xi) / self.scale  # EI with margin xi
-            gate = mu + cfg.beta * np.sqrt(var) > self.best_return + xi  # UCB_R above R^+ + xi
-            if not self.gated:
-                gate = np.ones(len(X), dtype=bool)
+            gate = np.ones(len(X), dtype=bool)
+            if self.gated and self.beyond:  # UCB_R on the ray beyond the band point
+                gate = band & (self.reach_ucb(X, band) > self.incumbent + cfg.beyond_rel * self.scale)
+            elif self.gated:  # UCB_R at the band point
+                gate = mu + cfg.beta * np.sqrt(var) > self.best_return + xi
         edge = np.where(band & gate, np.maximum(ei, cfg.boundary_weight * boundary), 0.0)
         value = np.where(inner, ei, 0.0) + edge
         return {"value": value, "ei": ei, "ucb_gate": gate, "boundary": boundary, "inner": inner,
                 "band": band, "proba": p}
+
+    def outward(self, X: np.ndarray) -> np.ndarray:
+        """Unit outward normals of the safe set at ``X`` (s, m) -> (s, m): ``-grad mu_g / |grad mu_g|``.
+
+        Central differences of g_S's latent mean with a step of 1e-3 of its length scales; where
+        the gradient vanishes the normal is 0 (only the point itself is then looked at).
+        """
+        X = np.asarray(X, dtype=float)
+        s, m = X.shape
+        h = 1e-3 * np.broadcast_to(np.asarray(self.classifier.kernel.lengthscales, dtype=float), (m,))
+        shifted = np.concatenate([X + h[j] * np.eye(m)[j] for j in range(m)]
+                                 + [X - h[j] * np.eye(m)[j] for j in range(m)])
+        g = self.classifier.predict_latent(shifted)[0].reshape(2, m, s)
+        grad = ((g[0] - g[1]) / (2.0 * h[:, None])).T  # (s, m)
+        norm = np.linalg.norm(grad, axis=1, keepdims=True)
+        return np.where(norm > 0, -grad / np.where(norm > 0, norm, 1.0), 0.0)
+
+    def reach_ucb(self, X: np.ndarray, where: np.ndarray | None = None) -> np.ndarray:
+        """``max_k UCB_R(theta + d_k l n)`` over ``d_k`` in ``reach``: (s, m) -> (s,); -inf off ``where``.
+
+        ``n`` is the outward normal (:meth:`outward`) and ``d_k l`` a distance of ``d_k`` length
+        scales along it, ``l = min(l_R, l_S)`` per dimension (``|step / l| = d_k``, ARD). The ray
+        ends at its first point within ``ray_open`` g_S length scales of a failed trial and at the
+        box; the band point itself (``d = 0``) always counts.
+        """
+        X = np.asarray(X, dtype=float)
+        out = np.full(len(X), -np.inf)
+        idx = np.flatnonzero(np.ones(len(X), dtype=bool) if where is None else where)
+        if idx.size == 0:
+            return out
+        Xb = X[idx]
+        n = self.outward(Xb)
+        m = X.shape[1]
+        ls = np.minimum(np.broadcast_to(np.asarray(self.regression.kernel.lengthscales, dtype=float), (m,)),
+                        np.broadcast_to(np.asarray(self.classifier.kernel.lengthscales, dtype=float), (m,)))
+        unit = np.linalg.norm(n / ls, axis=1, keepdims=True)
+        step = np.where(unit > 0, n / np.where(unit > 0, unit, 1.0), 0.0)  # one length scale along n
+        pts = np.concatenate([Xb + d * step for d in self.config.reach])
+        mu, var = self.regression.predict(pts)
+        ucb = (mu + self.config.beta * np.sqrt(floor_variance(var))).reshape(len(self.config.reach), -1)
+        open_ = np.ones(ucb.shape, dtype=bool)
+        failed = self.classifier.X_[self.classifier.y_ < 0]
+        if len(failed):  # known to fail: within ray_open g_S length scales of a failed trial
+            ls_s = np.broadcast_to(np.asarray(self.classifier.kernel.lengthscales, dtype=float), (m,))
+            d2 = np.min(np.sum(((pts[:, None, :] - failed[None]) / ls_s) ** 2, axis=2), axis=1)
+            open_ = (d2 >= self.config.ray_open ** 2).reshape(ucb.shape)
+        if self.box is not None:
+            lo, hi = self.box
+            open_ &= np.all((pts >= lo) & (pts <= hi), axis=1).reshape(ucb.shape)
+        open_[0] = True  # the band point itself
+        open_ = np.cumprod(open_, axis=0).astype(bool)  # the ray ends where failure is known
+        out[idx] = np.where(open_, ucb, -np.inf).max(axis=0)
+        return out
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
         """Acquisition values at candidates ``X`` (s, m) -> (s,)."""

@@ -3,8 +3,9 @@
 :class:`SafeBOOptimizer` fits g_S on every point and g_R on the successes (MAP hyperparameters
 in unit-box units, :mod:`corl.gp.fitting`, warm-started from the previous ask), maximises SEIB
 (:mod:`corl.acquisition.safe_ei`) and stops when nothing is left that is both plausible and safe
-(``max a < stop_value``; with few successes also with the boundary gate open) or the
-maximiser lands on a sampled point. It needs one known success
+(``max a < stop_value``) or the maximiser lands on a sampled point -- but only after asking again
+with the boundary gate looking beyond the band (``SEIB(beyond=True)``: may R be higher a length
+scale further out, where no failure is known?) and, with few successes, with the gate open. It needs one known success
 (the start) before its first ask: a safe method never guesses a first point.
 """
 
@@ -55,6 +56,7 @@ class SafeBOOptimizer(_BayesOpt):
                  max_evals: int = 100, seed=None, start=None) -> None:
         super().__init__(bounds, config, max_evals=max_evals, seed=seed, name="CORL", start=start)
         self.seib = seib
+        self._models = None
         self._scale = tuple(float(w) for w in bounds.width) if config.distance_scale is None else config.distance_scale
 
     def _propose(self) -> np.ndarray | StopReason:
@@ -63,9 +65,13 @@ class SafeBOOptimizer(_BayesOpt):
         acq = self._acquisition()
         self.last_acquisition = acq
         x, value = maximize(acq, self.bounds, rng=self.rng, config=self.config.maximizer, extra=self.X_)
+        if self._stops(x, value):  # nothing at the band points: is R plausibly higher beyond them?
+            acq = self._acquisition(beyond=True)
+            self.last_acquisition = acq
+            x, value = maximize(acq, self.bounds, rng=self.rng, config=self.config.maximizer, extra=self.X_)
         few = np.sum(self.success_) < self.seib.trust_per_dim * self.bounds.dim
         if few and not value >= self.seib.stop_value:  # too few successes to trust the gate: open it
-            acq = SEIB(acq.regression, acq.classifier, acq.best_return, acq.scale, self.seib, gated=False)
+            acq = self._acquisition(gated=False)
             self.last_acquisition = acq
             x, value = maximize(acq, self.bounds, rng=self.rng, config=self.config.maximizer, extra=self.X_)
         if not value >= self.seib.stop_value:
@@ -74,9 +80,17 @@ class SafeBOOptimizer(_BayesOpt):
             return StopReason.CONVERGED
         return x
 
-    def _acquisition(self) -> SEIB:
+    def _stops(self, x, value) -> bool:
+        return not value >= self.seib.stop_value or _stop(self.config.stop_rule, x, self.X_,
+                                                          self.config.stop_distance, self._scale)
+
+    def _acquisition(self, *, beyond: bool = False, gated: bool = True) -> SEIB:
         ok = self.success_ & np.isfinite(self.returns_)
-        classifier = self.models.classifier(self.X_, self.success_)
-        regression = self.models.regression(self.X_[ok], self.returns_[ok])
+        if self._models is None or self._models[0] != len(self.X_):  # fitted once per ask
+            classifier = self.models.classifier(self.X_, self.success_)
+            regression = self.models.regression(self.X_[ok], self.returns_[ok])
+            self._models = (len(self.X_), regression, classifier)
+        regression, classifier = self._models[1:]
         best = float(np.max(self.returns_[ok]))
-        return SEIB(regression, classifier, best, return_scale(self.returns_[ok]), self.seib)
+        return SEIB(regression, classifier, best, return_scale(self.returns_[ok]), self.seib, gated=gated,
+                    beyond=beyond, box=(self.bounds.lower, self.bounds.upper))
