@@ -8,7 +8,8 @@ from scipy import integrate, optimize
 from scipy.special import expit
 
 from corl.errors import InputError, StateError
-from corl.gp import SYNTHETIC_CLASSIFIER, GPClassifier, SquaredExponential, expected_sigmoid
+from corl.gp import GPClassifier, SquaredExponential, expected_sigmoid
+from corl.optimizers.gpconfig import SYNTHETIC_CLASSIFIER
 
 
 def _paper_problem(n=30):

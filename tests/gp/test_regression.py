@@ -5,7 +5,8 @@ import pytest
 from scipy.stats import multivariate_normal
 
 from corl.errors import InputError, StateError
-from corl.gp import SYNTHETIC_REGRESSION, GPRegression, SquaredExponential
+from corl.gp import GPRegression, SquaredExponential
+from corl.optimizers.gpconfig import SYNTHETIC_REGRESSION
 
 
 def _problem(seed=0, d=8, m=2):

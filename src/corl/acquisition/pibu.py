@@ -10,7 +10,8 @@ to stop. Two readings are implemented:
   * boundary: the band ``band_low <= p <= band_high`` (0.45..0.55);
   * boundary term: latent std of g_S divided by its signal std (so in [0, 1] like PI), set to
     zero where it is below ``boundary_threshold`` (0.55);
-  * stop when the maximiser lies within ``stop_distance`` (1e-3) of a sampled point.
+  * stop when the maximiser lies within 1e-3 of a sampled point (the optimizer's stopping rule,
+    ``corl.optimizers.bo.BOConfig.stop_distance``; the acquisition itself does not stop).
 ``PIBUVariant.LITERAL`` reads Eq. 17 word for word:
   * inner region: latent mean ``g_S >= 0``;
   * boundary: where the latent mean crosses zero (``|g_S| <= zero_tolerance``);
@@ -53,7 +54,6 @@ class PIBUConfig:
     band_high: float = 0.55
     boundary_threshold: float = 0.55
     zero_tolerance: float = 0.25
-    stop_distance: float = 1e-3
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "variant", PIBUVariant(self.variant))
@@ -61,8 +61,8 @@ class PIBUConfig:
             raise InputError(f"PIBU band needs 0 < band_low <= band_high < 1, got {self.band_low}, {self.band_high}")
         if not 0.0 < self.inner_threshold < 1.0:
             raise InputError(f"inner_threshold must lie in (0, 1), got {self.inner_threshold}")
-        if self.boundary_threshold < 0 or self.zero_tolerance <= 0 or self.stop_distance < 0:
-            raise InputError("boundary_threshold, stop_distance must be >= 0 and zero_tolerance > 0")
+        if self.boundary_threshold < 0 or self.zero_tolerance <= 0:
+            raise InputError("boundary_threshold must be >= 0 and zero_tolerance > 0")
 
 
 class PIBU:

@@ -35,15 +35,12 @@ from scipy.linalg import lapack
 from scipy.special import expit, ndtr
 
 from corl.errors import InputError, StateError
-from corl.gp.kernels import PAPER_LENGTHSCALE, PAPER_SIGNAL_STD, SquaredExponential
+from corl.gp.kernels import SquaredExponential
 from corl.gp.regression import check_training_data, gaussian_posterior, maximize_in_log_space, to_log_bounds
 from corl.numerics import as_matrix, cho_solve, cholesky, floor_variance
 
 __all__ = [
     "GPClassifier",
-    "ClassifierPreset",
-    "SYNTHETIC_CLASSIFIER",
-    "DOOR_CLASSIFIER",
     "LaplaceConvergenceWarning",
     "expected_sigmoid",
     "labels_to_pm1",
@@ -52,28 +49,6 @@ __all__ = [
 
 class LaplaceConvergenceWarning(UserWarning):
     """The Newton iteration for the Laplace mode stopped at ``max_iter`` before converging."""
-
-
-@dataclass(frozen=True)
-class ClassifierPreset:
-    """Hyperparameters of the success GP g_S as reported in the paper."""
-
-    lengthscales: float | tuple[float, ...]
-    signal_std: float
-    prior_mean: float
-
-    def __post_init__(self) -> None:
-        SquaredExponential(self.lengthscales, self.signal_std)  # validates
-
-    def build(self) -> "GPClassifier":
-        """An unfitted :class:`GPClassifier` with these settings."""
-        return GPClassifier(SquaredExponential(self.lengthscales, self.signal_std), self.prior_mean)
-
-
-#: Sec. VIII-A (synthetic problem): l = 0.4, sf = 10, constant prior mean -7.
-SYNTHETIC_CLASSIFIER = ClassifierPreset(PAPER_LENGTHSCALE, PAPER_SIGNAL_STD, -7.0)
-#: Sec. VIII-B (door opening): l = 0.02, sf = 10, constant prior mean -7.
-DOOR_CLASSIFIER = ClassifierPreset(0.02, 10.0, -7.0)
 
 
 # ---------------------------------------------------------------------------------------------

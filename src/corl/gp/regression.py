@@ -17,16 +17,15 @@ log_params : kernel log hyperparameters followed by ``log sigma``, shape (p + 2,
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import numpy as np
 from scipy import linalg
 
 from corl.errors import InputError, NumericalError, StateError
-from corl.gp.kernels import PAPER_LENGTHSCALE, PAPER_SIGNAL_STD, SquaredExponential
+from corl.gp.kernels import SquaredExponential
 from corl.numerics import as_matrix, as_vector, cho_solve, cholesky, floor_variance
 
-__all__ = ["GPRegression", "RegressionPreset", "SYNTHETIC_REGRESSION", "DOOR_REGRESSION"]
+__all__ = ["GPRegression"]
 
 _LOG_2PI = float(np.log(2.0 * np.pi))
 
@@ -36,31 +35,6 @@ def _check_positive(value, name: str) -> float:
     if not np.isfinite(v) or v <= 0:
         raise InputError(f"{name} must be positive and finite, got {value}")
     return v
-
-
-@dataclass(frozen=True)
-class RegressionPreset:
-    """Hyperparameters of the return GP g_R as reported in the paper."""
-
-    lengthscales: float | tuple[float, ...]
-    signal_std: float
-    noise_std: float
-    prior_mean: float = 0.0
-
-    def __post_init__(self) -> None:
-        SquaredExponential(self.lengthscales, self.signal_std)  # validates
-        _check_positive(self.noise_std, "noise_std")
-
-    def build(self) -> "GPRegression":
-        """An unfitted :class:`GPRegression` with these settings."""
-        kernel = SquaredExponential(self.lengthscales, self.signal_std)
-        return GPRegression(kernel, self.noise_std, self.prior_mean)
-
-
-#: Sec. VIII-A (synthetic problem): l = 0.4, sf = 10, sigma = 0.11.
-SYNTHETIC_REGRESSION = RegressionPreset(PAPER_LENGTHSCALE, PAPER_SIGNAL_STD, 0.11)
-#: Sec. VIII-B (door opening): l = 0.0417, sf = 0.1682, sigma = 0.0120.
-DOOR_REGRESSION = RegressionPreset(0.0417, 0.1682, 0.0120)
 
 
 def check_training_data(X, y, kernel: SquaredExponential, *, target: str = "y"):
