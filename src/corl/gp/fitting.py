@@ -145,6 +145,23 @@ def _map(lml, v0: np.ndarray, priors: list[HyperPrior], max_iter: int) -> np.nda
     return res.x if res.fun <= f_start else start
 
 
+def _map_or_medians(fit, v0: np.ndarray, priors: list[HyperPrior], max_iter: int) -> tuple[np.ndarray, str]:
+    """Fit a model (``fit()`` returns it) and find its MAP hyperparameters from ``v0``.
+
+    Returns ``(v, "")``, or the priors' medians and the reason when the fit or the search fails.
+    """
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", LaplaceConvergenceWarning)
+            model = fit()
+        found = _map(lambda w: model.log_marginal_likelihood(w, eval_gradient=True), v0, priors, max_iter)
+    except CorlError:
+        found = None
+    if found is None:
+        return _medians(priors), "marginal likelihood optimization failed"
+    return found, ""
+
+
 def _warm_start(warm, priors: list[HyperPrior]) -> np.ndarray:
     v = _medians(priors)
     if warm is not None:
@@ -193,15 +210,7 @@ def fit_regression(X, y, bounds, priors: RegressionPriors = RegressionPriors(), 
         reason, v = "all returns equal", _medians(plist)
     else:
         gp = GPRegression(SquaredExponential(np.exp(v[:m]), np.exp(v[m])), float(np.exp(v[m + 1])))
-        try:
-            gp.fit(U, z)
-            found = _map(lambda w: gp.log_marginal_likelihood(w, eval_gradient=True), v, plist, priors.max_iter)
-        except CorlError:
-            found = None
-        if found is None:
-            reason, v = "marginal likelihood optimization failed", _medians(plist)
-        else:
-            v = found
+        v, reason = _map_or_medians(lambda: gp.fit(U, z), v, plist, priors.max_iter)
     kernel = SquaredExponential(np.exp(v[:m]) * bounds.width, float(np.exp(v[m])) * scale)
     model = GPRegression(kernel, float(np.exp(v[m + 1])) * scale, prior_mean=mean).fit(X, y)
     return FitResult(model, v, reason, {"scale": scale})
@@ -242,17 +251,7 @@ def fit_classifier(X, s, bounds, prior_mean: float, priors: ClassifierPriors = C
         reason, v = "all outcomes equal" if y.size else "no data", _medians(plist)
     else:
         clf = GPClassifier(SquaredExponential(np.exp(v[:m]), float(np.exp(v[m]))), prior_mean, warm_start=False)
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", LaplaceConvergenceWarning)
-                clf.fit(U, y)
-            found = _map(lambda w: clf.log_marginal_likelihood(w, eval_gradient=True), v, plist, priors.max_iter)
-        except CorlError:
-            found = None
-        if found is None:
-            reason, v = "marginal likelihood optimization failed", _medians(plist)
-        else:
-            v = found
+        v, reason = _map_or_medians(lambda: clf.fit(U, y), v, plist, priors.max_iter)
     kernel = SquaredExponential(np.exp(v[:m]) * bounds.width, float(np.exp(v[m])))
     model = GPClassifier(kernel, prior_mean)
     if previous is not None and hasattr(previous, "a_"):  # reuse the last mode as the Newton start
