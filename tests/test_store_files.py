@@ -22,22 +22,9 @@ from corl.problem import Outcome, Proposal
 from corl.session import StoredRun
 from corl.store import RunStore, StoreError
 from corl.tasks.registry import load_task
+from test_store import HOLD_WRITER  # a child that holds a store open as its writer
 
 runner = CliRunner()
-
-HOLD_WRITER = textwrap.dedent(
-    """
-    import sys, time
-    import numpy as np
-    from corl.problem import Proposal
-    from corl.store import RunStore
-    store = RunStore(sys.argv[1])
-    run = store.create_run(task="door", method="corl", seed=0, config={}, versions={})
-    store.add_proposal(run, Proposal(0, np.arange(4.0), np.ones(2), "demonstration"))
-    print("ready", flush=True)
-    time.sleep(60)
-    """
-)
 
 WRITE_FOREVER = textwrap.dedent(
     """
