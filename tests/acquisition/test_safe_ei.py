@@ -131,3 +131,57 @@ def test_beyond_settings_are_checked():
         SEIBConfig(beyond_rel=-1.0)
     with pytest.raises(InputError, match="reach"):
         SEIBConfig(reach=())
+
+
+def _valley_models(fail_left: bool = False):
+    """1-D on [0, 1]: a local peak at 0.6 and its left slope sampled down to R ~ 0 at 0.3.
+
+    One length scale (0.1) left of the band, g_R has the slope's zeros beside it and is sure R is
+    low: the look beyond closes. Four length scales out it reverts to its prior (mean 0, sf 1), and
+    there R may beat the best. A failure at 0.85 closes the right side; ``fail_left`` adds one at
+    0.22, just past the left band.
+    """
+    x = [0.3, 0.35, 0.4, 0.45, 0.5, 0.55, 0.6, 0.65, 0.7, 0.85] + ([0.22] if fail_left else [])
+    X = np.array(x)[:, None]
+    s = np.array([True] * 9 + [False] * (len(x) - 9))
+    r = np.where(s, np.exp(-(X[:, 0] - 0.6) ** 2 / 0.01), np.nan)
+    clf = GPClassifier(SquaredExponential(0.05, 10.0), prior_mean=-7.0).fit(X, s)
+    reg = GPRegression(SquaredExponential(0.1, 1.0), 0.01, prior_mean=0.0).fit(X[s], r[s])
+    return reg, clf, float(np.std(r[s]))
+
+
+def test_looking_far_crosses_a_valley_the_look_beyond_cannot():
+    reg, clf, scale = _valley_models()
+    grid = np.linspace(0, 1, 2001)[:, None]
+    kw = dict(box=([0.0], [1.0]))
+    beyond = SEIB(reg, clf, 1.0, scale, beyond=True, **kw).parts(grid)
+    far = SEIB(reg, clf, 1.0, scale, beyond=True, far=True, **kw).parts(grid)
+    band = beyond["band"]
+    left, right = band & (grid[:, 0] < 0.5), band & (grid[:, 0] > 0.5)
+    assert np.any(left) and np.any(right)
+    assert not np.any(beyond["ucb_gate"][band])  # one length scale out: still the valley
+    assert np.any(far["ucb_gate"][left]) and np.max(far["value"][left]) > 0.01  # four out: the prior
+    assert not np.any(far["ucb_gate"][right])  # the failure at 0.85 closes the right side
+    assert np.all(far["value"][~band & ~far["inner"]] == 0.0)  # still only band points proposed
+    none = SEIB(reg, clf, 1.0, scale, SEIBConfig(far_reach=(0.0, 0.5, 1.0)), beyond=True, far=True, **kw)
+    assert not np.any(none.parts(grid)["ucb_gate"][band])  # the distance, not the margin, opens it
+
+
+def test_looking_far_starts_only_from_band_points_clear_of_failures():
+    reg, clf, scale = _valley_models(fail_left=True)
+    grid = np.linspace(0, 1, 2001)[:, None]
+    far = SEIB(reg, clf, 1.0, scale, beyond=True, far=True, box=([0.0], [1.0])).parts(grid)
+    assert np.any(far["band"] & (grid[:, 0] < 0.5))
+    assert not np.any(far["ucb_gate"])  # the left band lies within 2 g_S length scales of 0.22
+    wide = SEIB(reg, clf, 1.0, scale, SEIBConfig(far_open=0.5), beyond=True, far=True, box=([0.0], [1.0]))
+    opened = grid[wide.parts(grid)["ucb_gate"], 0]
+    assert opened.size and np.all(opened > 0.5)  # a smaller far_open lets the right side nearer 0.85 open,
+    # while the left ray still ends at the failure just past the band
+
+
+def test_far_settings_are_checked():
+    with pytest.raises(InputError, match="far_reach"):
+        SEIBConfig(far_reach=(-1.0,))
+    with pytest.raises(InputError, match="far_open"):
+        SEIBConfig(far_open=-1.0)
+    assert SEIBConfig(far_reach=()).far_reach == ()  # never look far

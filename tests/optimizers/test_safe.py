@@ -102,7 +102,7 @@ def test_looks_beyond_the_band_instead_of_stopping_at_a_local_peak():
 
     bounds = Bounds(np.array([-np.pi]), np.array([np.pi]))
     runs = {}
-    for name, seib in [("band only", SEIBConfig(beyond_rel=np.inf)), ("beyond", SEIBConfig())]:
+    for name, seib in [("band only", SEIBConfig(beyond_rel=np.inf, far_reach=())), ("beyond", SEIBConfig())]:
         opt = SafeBOOptimizer(bounds, seib=seib, max_evals=40, seed=0)
         opt.tell(np.array([1.8]), _local_peak_rollout(np.array([1.8])))
         _loop(opt, _local_peak_rollout, 39)
@@ -112,3 +112,27 @@ def test_looks_beyond_the_band_instead_of_stopping_at_a_local_peak():
     assert abs(new.best[0][0]) < 0.05 and new.best[1] > 0.99  # looking beyond crosses the valley to 0
     assert np.sum(~new.success_) <= 2 and new.n_evals < 40  # ... with few failures, and still stops
     assert new.stop_reason in (StopReason.NO_IMPROVEMENT, StopReason.CONVERGED)
+
+
+def _valley_rollout(theta):  # valley-like: safe on (1, 9), a local peak at 2.8 by the start, the optimum at 7.5
+    x = float(np.asarray(theta).reshape(-1)[0])
+    if not 1.0 < x < 9.0:
+        return Outcome(False, None)
+    return Outcome(True, 0.7 * np.exp(-((x - 2.8) ** 2) / 0.5) + np.exp(-((x - 7.5) ** 2) / 0.8))
+
+
+def test_looks_far_across_a_valley_wider_than_a_length_scale():
+    from corl.acquisition.safe_ei import SEIBConfig
+    from corl.problem import Bounds
+
+    bounds = Bounds(np.array([0.0]), np.array([10.0]))
+    runs = {}
+    for name, seib in [("beyond", SEIBConfig(far_reach=())), ("far", SEIBConfig())]:
+        opt = SafeBOOptimizer(bounds, seib=seib, max_evals=40, seed=0)
+        opt.tell(np.array([2.5]), _valley_rollout(np.array([2.5])))
+        _loop(opt, _valley_rollout, 39)
+        runs[name] = opt
+    near, far = runs["beyond"], runs["far"]
+    assert near.best[1] < 0.71 and near.stop_reason is not StopReason.BUDGET  # stops at the local peak
+    assert abs(far.best[0][0] - 7.5) < 0.1 and far.best[1] > 0.99  # looking far crosses to the optimum
+    assert np.sum(~far.success_) <= 2 and far.n_evals < 40  # with few failures, and still stops

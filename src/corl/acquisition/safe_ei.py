@@ -43,6 +43,15 @@ failed trial: g_S's negative prior mean makes its ``p`` hardly lower there than 
 space, so the failures themselves are asked) and at the box. The margin ``beyond_rel * scale`` is larger than ``xi``: the step risks a failure
 in the band, so it must promise a real gain, not a sliver along an edge already mapped.
 
+Looking far (``far=True``). One length scale is not enough to cross a valley of R wider than
+that (a local peak by the start, the optimum a few length scales away through safe but unexplored
+space): there g_R still extrapolates the valley. When the look beyond leaves nothing either, the
+optimizer asks once more with the ray reaching ``far_reach`` (up to 4) length scales, where g_R
+reverts to its prior, and a smaller margin ``far_rel * scale``, but only from band points that lie
+``far_open`` (2) g_S length scales or more from every failed trial, on a ray that stays that far
+from them: a look into unexplored space, not along an edge already mapped (where R rising outward
+would otherwise pull every far look back into the known boundary).
+
 Glossary
 --------
 mu, var   : mean and latent variance of g_R at candidates, (s,)
@@ -90,16 +99,21 @@ class SEIBConfig:
     beyond_rel: float = 0.5  # looking beyond: R must plausibly beat R^+ by this fraction of the spread
     ray_open: float = 1.0  # the ray ends within ray_open g_S length scales of a failed trial
     reach: tuple[float, ...] = (0.0, 0.25, 0.5, 0.75, 1.0)  # ray points beyond a band point, in length scales
+    far_reach: tuple[float, ...] = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0)  # looking far; () never looks far
+    far_rel: float = 0.1  # looking far: R must plausibly beat R^+_mu by this fraction of the spread
+    far_open: float = 2.0  # looking far: band point and ray at least far_open g_S length scales from failures
 
     def __post_init__(self) -> None:
         if not 0.0 < self.p_band <= self.p_inner < 1.0:
             raise InputError(f"SEIB needs 0 < p_band <= p_inner < 1, got {self.p_band}, {self.p_inner}")
         if min(self.xi_rel, self.beta, self.boundary_weight, self.stop_value, self.trust_per_dim,
-               self.beyond_rel, self.ray_open) < 0:
-            raise InputError("xi_rel, beta, boundary_weight, stop_value, trust_per_dim, beyond_rel and ray_open "
-                             "must be >= 0 (beyond_rel=inf never looks beyond the band)")
+               self.beyond_rel, self.ray_open, self.far_rel, self.far_open) < 0:
+            raise InputError("xi_rel, beta, boundary_weight, stop_value, trust_per_dim, beyond_rel, ray_open, far_rel "
+                             "and far_open must be >= 0 (beyond_rel=inf never looks beyond the band)")
         if len(self.reach) == 0 or min(self.reach) < 0:
             raise InputError(f"reach needs at least one distance, all >= 0, got {self.reach}")
+        if self.far_reach and min(self.far_reach) < 0:
+            raise InputError(f"far_reach needs distances >= 0 (or none: never look far), got {self.far_reach}")
 
 
 class SEIB:
@@ -119,17 +133,20 @@ class SEIB:
     beyond : gate a band point by the return just beyond it instead (:meth:`reach_ucb`):
         ``max_k UCB_R(theta_k) > R^+_mu + beyond_rel * scale`` over the ray points ``theta_k``
         that are not known to fail; the optimizer asks this when the band-point gate would stop.
+    far : with ``beyond``, look far instead: rays of ``far_reach`` length scales, margin
+        ``far_rel``, and only band points and ray points ``far_open`` g_S length scales or more
+        from every failed trial.
     box : ``(lower, upper)`` of the search box, (m,) each; ray points outside it do not count.
     """
 
     def __init__(self, regression, classifier, best_return: float, scale: float,
                  config: SEIBConfig = SEIBConfig(), *, gated: bool = True, beyond: bool = False,
-                 box=None) -> None:
+                 far: bool = False, box=None) -> None:
         if not (np.isfinite(scale) and scale > 0):
             raise InputError(f"scale must be positive and finite, got {scale}")
         self.regression, self.classifier = regression, classifier
         self.best_return, self.scale, self.config = float(best_return), float(scale), config
-        self.gated, self.beyond = bool(gated), bool(beyond)
+        self.gated, self.beyond, self.far = bool(gated), bool(beyond), bool(far)
         self.box = None if box is None else (np.asarray(box[0], dtype=float), np.asarray(box[1], dtype=float))
         self.incumbent = self.best_return  # the gate's R^+: the best posterior mean at the data, <= R^+
         if regression is not None and len(getattr(regression, "X_", ())):
@@ -151,7 +168,8 @@ class SEIB:
             ei = expected_improvement(mu, var, self.best_return + xi) / self.scale  # EI with margin xi
             gate = np.ones(len(X), dtype=bool)
             if self.gated and self.beyond:  # UCB_R on the ray beyond the band point
-                gate = band & (self.reach_ucb(X, band) > self.incumbent + cfg.beyond_rel * self.scale)
+                rel = cfg.far_rel if self.far else cfg.beyond_rel
+                gate = band & (self.reach_ucb(X, band) > self.incumbent + rel * self.scale)
             elif self.gated:  # UCB_R at the band point
                 gate = mu + cfg.beta * np.sqrt(var) > self.best_return + xi
         edge = np.where(band & gate, np.maximum(ei, cfg.boundary_weight * boundary), 0.0)
@@ -181,7 +199,8 @@ class SEIB:
         ``n`` is the outward normal (:meth:`outward`) and ``d_k l`` a distance of ``d_k`` length
         scales along it, ``l = min(l_R, l_S)`` per dimension (``|step / l| = d_k``, ARD). The ray
         ends at its first point within ``ray_open`` g_S length scales of a failed trial and at the
-        box; the band point itself (``d = 0``) always counts.
+        box; the band point itself (``d = 0``) always counts. Looking far (``far``): ``far_reach``
+        and ``far_open`` instead, and the band point counts only if it is that far from failures.
         """
         X = np.asarray(X, dtype=float)
         out = np.full(len(X), -np.inf)
@@ -195,19 +214,22 @@ class SEIB:
                         np.broadcast_to(np.asarray(self.classifier.kernel.lengthscales, dtype=float), (m,)))
         unit = np.linalg.norm(n / ls, axis=1, keepdims=True)
         step = np.where(unit > 0, n / np.where(unit > 0, unit, 1.0), 0.0)  # one length scale along n
-        pts = np.concatenate([Xb + d * step for d in self.config.reach])
+        reach = self.config.far_reach if self.far else self.config.reach
+        radius = self.config.far_open if self.far else self.config.ray_open
+        pts = np.concatenate([Xb + d * step for d in reach])
         mu, var = self.regression.predict(pts)
-        ucb = (mu + self.config.beta * np.sqrt(floor_variance(var))).reshape(len(self.config.reach), -1)
+        ucb = (mu + self.config.beta * np.sqrt(floor_variance(var))).reshape(len(reach), -1)
         open_ = np.ones(ucb.shape, dtype=bool)
         failed = self.classifier.X_[self.classifier.y_ < 0]
         if len(failed):  # known to fail: within ray_open g_S length scales of a failed trial
             ls_s = np.broadcast_to(np.asarray(self.classifier.kernel.lengthscales, dtype=float), (m,))
             d2 = np.min(np.sum(((pts[:, None, :] - failed[None]) / ls_s) ** 2, axis=2), axis=1)
-            open_ = (d2 >= self.config.ray_open ** 2).reshape(ucb.shape)
+            open_ = (d2 >= radius ** 2).reshape(ucb.shape)
         if self.box is not None:
             lo, hi = self.box
             open_ &= np.all((pts >= lo) & (pts <= hi), axis=1).reshape(ucb.shape)
-        open_[0] = True  # the band point itself
+        if not self.far:
+            open_[0] = True  # the band point itself (looking far, it too must be clear of failures)
         open_ = np.cumprod(open_, axis=0).astype(bool)  # the ray ends where failure is known
         out[idx] = np.where(open_, ucb, -np.inf).max(axis=0)
         return out

@@ -5,7 +5,9 @@ in unit-box units, :mod:`corl.gp.fitting`, warm-started from the previous ask), 
 (:mod:`corl.acquisition.safe_ei`) and stops when nothing is left that is both plausible and safe
 (``max a < stop_value``) or the maximiser lands on a sampled point -- but only after asking again
 with the boundary gate looking beyond the band (``SEIB(beyond=True)``: may R be higher a length
-scale further out, where no failure is known?) and, with few successes, with the gate open. It needs one known success
+scale further out, where no failure is known?), then looking far (``SEIB(beyond=True, far=True)``:
+up to four length scales out, from band points well clear of every failure: across a valley of R)
+and, with few successes, with the gate open. It needs one known success
 (the start) before its first ask: a safe method never guesses a first point.
 """
 
@@ -69,6 +71,10 @@ class SafeBOOptimizer(_BayesOpt):
             acq = self._acquisition(beyond=True)
             self.last_acquisition = acq
             x, value = maximize(acq, self.bounds, rng=self.rng, config=self.config.maximizer, extra=self.X_)
+        if self._stops(x, value) and self.seib.far_reach:  # nor one length scale out: far from failures?
+            acq = self._acquisition(beyond=True, far=True)
+            self.last_acquisition = acq
+            x, value = maximize(acq, self.bounds, rng=self.rng, config=self.config.maximizer, extra=self.X_)
         few = np.sum(self.success_) < self.seib.trust_per_dim * self.bounds.dim
         if few and not value >= self.seib.stop_value:  # too few successes to trust the gate: open it
             acq = self._acquisition(gated=False)
@@ -84,7 +90,7 @@ class SafeBOOptimizer(_BayesOpt):
         return not value >= self.seib.stop_value or _stop(self.config.stop_rule, x, self.X_,
                                                           self.config.stop_distance, self._scale)
 
-    def _acquisition(self, *, beyond: bool = False, gated: bool = True) -> SEIB:
+    def _acquisition(self, *, beyond: bool = False, far: bool = False, gated: bool = True) -> SEIB:
         ok = self.success_ & np.isfinite(self.returns_)
         if self._models is None or self._models[0] != len(self.X_):  # fitted once per ask
             classifier = self.models.classifier(self.X_, self.success_)
@@ -93,4 +99,4 @@ class SafeBOOptimizer(_BayesOpt):
         regression, classifier = self._models[1:]
         best = float(np.max(self.returns_[ok]))
         return SEIB(regression, classifier, best, return_scale(self.returns_[ok]), self.seib, gated=gated,
-                    beyond=beyond, box=(self.bounds.lower, self.bounds.upper))
+                    beyond=beyond, far=far, box=(self.bounds.lower, self.bounds.upper))
