@@ -11,7 +11,10 @@ at most ``--budget`` (40) black-box trials in all. Printed per method and proble
   trials   : trials per run (mean), start included
   ms/it    : mean wall time of one tell + ask (fit both models, maximise)
 
-Problems marked ``held-out`` were never looked at while designing CORL (SEIB); the others were.
+``set`` says what each problem was to the design of CORL (SEIB): ``training`` problems were used to
+design it; ``seen`` ones were held out for one change, run once after it, and looked at while
+designing a later one (the look beyond the band, the look far); ``held-out`` ones (terrace-2d,
+strip-2d, corner-3d, dip-1d) were written before the look far and run once, after it.
 Peers are optional (``pip install corl[bench]``): BoTorch's constrained LogEI with the success
 labels as a GP constraint (both GPs' hyperparameters fitted), and SafeOpt, which needs GPy and so
 numpy < 2: it runs in its own interpreter, ``--safeopt-python`` (a venv with safeopt), and is
@@ -37,7 +40,6 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
-from corl.errors import StateError  # noqa: E402
 from corl.optimizers.bo import BOConfig, PIBUOptimizer  # noqa: E402
 from corl.optimizers.gpconfig import FITTED_CLASSIFIER, FITTED_REGRESSION, ClassifierConfig, RegressionConfig  # noqa: E402
 from corl.optimizers.safe import SafeBOOptimizer  # noqa: E402
@@ -56,7 +58,7 @@ class Problem:
     safe: Callable[[np.ndarray], np.ndarray]
     ret: Callable[[np.ndarray], np.ndarray]
     what: str
-    held_out: bool = False
+    role: str = "training"  # training | seen (held out once, then looked at while designing) | held-out
 
     @property
     def bounds(self) -> Bounds:
@@ -82,7 +84,7 @@ def _two_discs(X):
     return _ball((-1.5, 0.0), 0.9)(X) | _ball((1.6, 0.5), 1.0)(X)
 
 
-def _crescent(X):  # held-out: disc minus a shifted disc
+def _crescent(X):  # disc minus a shifted disc
     return _ball((0.0, 0.0), 2.0)(X) & ~_ball((0.9, 0.0), 1.6)(X)
 
 
@@ -91,29 +93,29 @@ def _bumps_1d(X):
     return np.sin(1.3 * x) + 0.6 * np.exp(-((x - 5.3) ** 2) / 0.3)
 
 
-def _valley_1d(X):  # held-out: a local peak beside the start, the global one across a valley
+def _valley_1d(X):  # a local peak beside the start, the global one across a valley
     x = X[:, 0]
     return 0.7 * np.exp(-((x - 2.8) ** 2) / 0.5) + np.exp(-((x - 7.5) ** 2) / 0.8)
 
 
-def _neck(X):  # held-out: two safe lobes joined by a thin neck
+def _neck(X):  # two safe lobes joined by a thin neck
     return (_ball((-1.2, 0.0), 0.8)(X) | _ball((1.2, 0.0), 0.8)(X)
             | ((np.abs(X[:, 1]) < 0.15) & (np.abs(X[:, 0]) < 1.2)))
 
 
-def _terrace_2d():  # held-out (third batch): a local peak by the start, the optimum across a wide valley
+def _terrace_2d():  # a local peak by the start, the optimum across a wide valley
     def ret(X):
         return (0.6 * np.exp(-np.sum((X - np.array([-1.6, 0.0])) ** 2, axis=1) / 0.4)
                 + np.exp(-np.sum((X - np.array([1.7, 0.4])) ** 2, axis=1) / 0.6))
     return ret
 
 
-def _dip_1d(X):  # held-out (third batch): a local peak by the start, the optimum at the far edge
+def _dip_1d(X):  # a local peak by the start, the optimum at the far edge
     x = X[:, 0]
     return 0.5 * np.exp(-((x - 2.0) ** 2) / 0.3) + 0.12 * x
 
 
-def _far_edge_3d(X):  # held-out: a local bump near the start, the optimum on the far edge
+def _far_edge_3d(X):  # a local bump near the start, the optimum on the far edge
     bump = 0.8 * np.exp(-np.sum((X - np.array([-1.2, 0.2, 0.0])) ** 2, axis=1) / 0.15)
     return X[:, 0] - 0.3 * (X[:, 1] ** 2 + X[:, 2] ** 2) + bump
 
@@ -133,40 +135,41 @@ PROBLEMS = [
             lambda X: X[:, 0] + 0.5 * X[:, 1] - X[:, 2] ** 2, "3-D ellipsoid, optimum on the edge"),
     Problem("inside-4d", (-1.0,) * 4, (1.0,) * 4, (-0.3, -0.3, -0.3, -0.3), _ball((0.0,) * 4, 0.8),
             _sq((0.2, 0.1, 0.2, -0.1)), "4-D ball, optimum inside"),
-    # held-out: never used while designing SEIB
+    # seen: held out for the first SEIB design (bumps-1d, crescent-2d, slab-3d, halfball-4d), run once after it;
+    # bumps-1d was then used to design the look beyond the band, and all of them to design the look far
     Problem("bumps-1d", (0.0,), (8.0,), (1.1,), lambda X: (X[:, 0] > 0.5) & (X[:, 0] < 6.0), _bumps_1d,
-            "1-D multimodal R, optimum inside next to a local one", held_out=True),
+            "1-D multimodal R, optimum inside next to a local one", role="seen"),
     Problem("crescent-2d", (-2.5, -2.5), (2.5, 2.5), (-1.5, 0.0), _crescent,
             lambda X: -np.sum((X - np.array([0.5, 1.7])) ** 2, axis=1),
-            "2-D crescent (non-convex), optimum at its horn's edge", held_out=True),
+            "2-D crescent (non-convex), optimum at its horn's edge", role="seen"),
     Problem("slab-3d", (0.0, 0.0, 0.0), (4.0, 2.0, 1.0), (0.5, 0.5, 0.5),
             lambda X: (X[:, 0] + X[:, 1] < 3.0) & (np.abs(X[:, 2] - 0.5) < 0.35),
-            _sq((1.5, 0.8, 0.6)), "3-D slab, optimum inside", held_out=True),
+            _sq((1.5, 0.8, 0.6)), "3-D slab, optimum inside", role="seen"),
     Problem("halfball-4d", (-1.0,) * 4, (1.0,) * 4, (0.0, 0.0, 0.0, -0.3),
             lambda X: (np.linalg.norm(X, axis=1) < 0.9) & (X[:, 0] + X[:, 1] < 0.5),
             lambda X: X[:, 0] + X[:, 1] - 0.5 * X[:, 2] ** 2 - 0.3 * X[:, 3] ** 2,
-            "4-D half ball, optimum on the flat edge", held_out=True),
-    # held-out (added with the stop-rule change of SEIB, before it): never looked at while changing it
+            "4-D half ball, optimum on the flat edge", role="seen"),
+    # seen: held out for the look beyond the band (written before it, run once after it), then used to design the look far
     Problem("valley-1d", (0.0,), (10.0,), (2.5,), lambda X: (X[:, 0] > 1.0) & (X[:, 0] < 9.0), _valley_1d,
-            "1-D local peak beside the start, the optimum across a valley", held_out=True),
+            "1-D local peak beside the start, the optimum across a valley", role="seen"),
     Problem("neck-2d", (-2.5, -1.5), (2.5, 1.5), (-1.3, 0.1), _neck,
             lambda X: -np.sum((X - np.array([1.5, 0.3])) ** 2, axis=1),
-            "2-D two safe lobes joined by a thin neck, optimum in the far lobe", held_out=True),
+            "2-D two safe lobes joined by a thin neck, optimum in the far lobe", role="seen"),
     Problem("far-edge-3d", (-2.0, -1.0, -1.0), (2.0, 1.0, 1.0), (-1.2, 0.0, 0.0),
             lambda X: np.sum((X / np.array([1.8, 0.6, 0.6])) ** 2, axis=1) < 1.0, _far_edge_3d,
-            "3-D elongated ellipsoid, local bump by the start, optimum on the far edge", held_out=True),
-    # held-out (third batch, written before the valley-crossing work): never looked at while doing it
+            "3-D elongated ellipsoid, local bump by the start, optimum on the far edge", role="seen"),
+    # held-out: written before the look far, never run while designing it, run once after it
     Problem("terrace-2d", (-3.0, -2.0), (3.0, 2.0), (-1.8, 0.2),
             lambda X: np.sum((X / np.array([2.6, 1.6])) ** 2, axis=1) < 1.0, _terrace_2d(),
-            "2-D ellipse, a local peak by the start, the optimum across a wide valley", held_out=True),
+            "2-D ellipse, a local peak by the start, the optimum across a wide valley", role="held-out"),
     Problem("strip-2d", (0.0, 0.0), (4.0, 4.0), (0.8, 0.9), lambda X: np.abs(X[:, 0] - X[:, 1]) < 0.5,
-            _sq((3.2, 3.0)), "2-D diagonal strip, optimum inside at its far end", held_out=True),
+            _sq((3.2, 3.0)), "2-D diagonal strip, optimum inside at its far end", role="held-out"),
     Problem("corner-3d", (-1.0,) * 3, (1.0,) * 3, (-0.2, -0.2, -0.2),
             lambda X: (np.sum(X, axis=1) < 1.2) & (np.linalg.norm(X, axis=1) < 1.1),
             lambda X: np.sum(X, axis=1) - 0.5 * (X[:, 0] - X[:, 1]) ** 2,
-            "3-D ball cut by a plane, optimum on the cut", held_out=True),
+            "3-D ball cut by a plane, optimum on the cut", role="held-out"),
     Problem("dip-1d", (0.0,), (10.0,), (2.2,), lambda X: (X[:, 0] > 1.0) & (X[:, 0] < 8.5), _dip_1d,
-            "1-D local peak by the start, the optimum at the far edge across a dip", held_out=True),
+            "1-D local peak by the start, the optimum at the far edge across a dip", role="held-out"),
 ]
 
 _GRID = {1: 20001, 2: 401, 3: 71, 4: 29}
@@ -229,10 +232,7 @@ def _drive(opt, p: Problem, start: np.ndarray, budget: int):
     opt.tell(start, rollout(p, start))  # the stopping contract: tell fits and proposes, ask returns it
     times = []
     while not opt.done and opt.n_evals < budget:
-        try:
-            x = opt.ask()
-        except StateError:  # converged (the stop contract of issue 11 item 4 may turn this into done)
-            break
+        x = opt.ask()  # never raises before done: the stopping contract
         times.append(time.perf_counter() - t0)
         o = rollout(p, x)
         t0 = time.perf_counter()
@@ -420,7 +420,12 @@ def main(argv=None) -> None:
                     help="an interpreter with safeopt installed (default $CORL_SAFEOPT_PYTHON)")
     ap.add_argument("--speed", action="store_true", help="also time one iteration at 100 points in 2-D")
     ap.add_argument("--json", default=None, help="write every run's numbers here")
+    ap.add_argument("--table", nargs="+", default=None, metavar="JSON",
+                    help="run nothing: print the table of runs saved with --json (several files are merged)")
     args = ap.parse_args(argv)
+    if args.table:
+        print_table(args.table, args.budget)
+        return
 
     runners = {"CORL": run_corl, "PIBU": run_pibu, "PIBU(l=w/10)": run_pibu_tenth}
     wanted = [m.strip() for m in args.methods.split(",") if m.strip()]
@@ -467,12 +472,30 @@ def main(argv=None) -> None:
         Path(args.json).write_text(json.dumps(records, indent=1))
 
 
+def print_table(paths, budget: int = 40) -> None:
+    """The table of saved runs (``--json`` files, merged; a start saved twice counts once, the last)."""
+    runs: dict = {}
+    for path in paths:
+        for rec in json.loads(Path(path).read_text()):
+            runs.setdefault((rec["problem"], rec["method"]), {})[rec["start"]] = rec
+    order = {p.name: k for k, p in enumerate(PROBLEMS)}
+    by_name = {p.name: p for p in PROBLEMS}
+    print(f"Safe BO suite: {budget} trials, start told first; found = within 2 % of the return range")
+    print(f"{'problem':<14} {'set':<9} {'method':<13} {'found':>7} {'fail':>6} {'beyond':>7} {'trials':>7} {'ms/it':>8}")
+    print("-" * 78)
+    methods = ["CORL", "PIBU", "PIBU(l=w/10)", "BoTorch", "SafeOpt"]
+    rank = {m: k for k, m in enumerate(methods)}
+    for prob, name in sorted(runs, key=lambda k: (order.get(k[0], len(order)), rank.get(k[1], len(rank)), k[1])):
+        recs = list(runs[(prob, name)].values())
+        print(_row(by_name[prob], name, recs, float(np.mean([r["ms"] for r in recs]))))
+
+
 def _row(p, name, runs, ms) -> str:
     found = sum(r["found"] for r in runs)
     fail = np.mean([r["fail"] for r in runs])
     beyond = max(r["beyond"] for r in runs)
     trials = np.mean([r["trials"] for r in runs])
-    tag = "held-out" if p.held_out else "training"
+    tag = p.role
     return f"{p.name:<14} {tag:<9} {name:<13} {found:>3}/{len(runs):<3} {fail:>6.1f} {beyond:>7.3f} {trials:>7.1f} {ms:>8.1f}"
 
 

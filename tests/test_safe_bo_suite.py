@@ -1,0 +1,50 @@
+"""benchmarks/safe_bo_suite.py: its problems are what they claim, a split run merges into one table."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+SUITE = Path(__file__).resolve().parents[1] / "benchmarks" / "safe_bo_suite.py"
+
+
+@pytest.fixture(scope="module")
+def suite():
+    spec = importlib.util.spec_from_file_location("safe_bo_suite", SUITE)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["safe_bo_suite"] = module  # dataclasses look their module up there
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_every_problem_has_safe_starts_in_the_box_and_an_optimum_above_them(suite):
+    assert len(suite.PROBLEMS) >= 8 and {p.bounds.dim for p in suite.PROBLEMS} == {1, 2, 3, 4}
+    assert {p.role for p in suite.PROBLEMS} == {"training", "seen", "held-out"}
+    for p in suite.PROBLEMS:
+        truth = suite.truth_of(p)
+        starts = suite.starts_of(p, 20, 0)
+        assert len(starts) == 20 and np.all(p.safe(starts)), p.name
+        assert all(p.bounds.contains(x) for x in starts), p.name
+        assert truth.best - truth.tol > p.ret(starts[:1])[0], f"{p.name}: the start is already 'found'"
+        spacing = np.sqrt(p.bounds.dim) / (suite._GRID[p.bounds.dim] - 1)  # of the grid the truth is taken on
+        assert truth.tol > 0 and np.all(truth.beyond(p.bounds.to_unit(starts)) <= spacing), p.name
+
+
+def test_a_run_split_by_start_range_merges_into_the_unsplit_table(suite, tmp_path, capsys):
+    args = ["--methods", "CORL", "--problems", "edge-1d", "--starts", "4", "--budget", "12"]
+    suite.main(args + ["--json", str(tmp_path / "all.json")])
+    suite.main(args + ["--start-range", "0:2", "--json", str(tmp_path / "a.json")])
+    suite.main(args + ["--start-range", "2:4", "--json", str(tmp_path / "b.json")])
+    whole = json.loads((tmp_path / "all.json").read_text())
+    parts = json.loads((tmp_path / "a.json").read_text()) + json.loads((tmp_path / "b.json").read_text())
+    key = ["start", "found", "fail", "beyond", "trials"]
+    assert [[r[k] for k in key] for r in whole] == [[r[k] for k in key] for r in parts]
+    capsys.readouterr()
+    suite.main(["--table", str(tmp_path / "a.json"), str(tmp_path / "b.json")])
+    merged = [line for line in capsys.readouterr().out.splitlines() if line.startswith("edge-1d")]
+    assert len(merged) == 1 and merged[0].split()[3] == f"{sum(r['found'] for r in whole)}/4"
