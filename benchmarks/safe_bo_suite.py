@@ -115,6 +115,15 @@ def _dip_1d(X):  # a local peak by the start, the optimum at the far edge
     return 0.5 * np.exp(-((x - 2.0) ** 2) / 0.3) + 0.12 * x
 
 
+def _two_peaks(local, top, width: float):  # 0.6 at ``local``, 1 at ``top``: Gaussian bumps of variance width/2
+    local, top = np.asarray(local, float), np.asarray(top, float)
+
+    def ret(X):
+        return (0.6 * np.exp(-np.sum((X - local) ** 2, axis=1) / width)
+                + np.exp(-np.sum((X - top) ** 2, axis=1) / width))
+    return ret
+
+
 def _far_edge_3d(X):  # a local bump near the start, the optimum on the far edge
     bump = 0.8 * np.exp(-np.sum((X - np.array([-1.2, 0.2, 0.0])) ** 2, axis=1) / 0.15)
     return X[:, 0] - 0.3 * (X[:, 1] ** 2 + X[:, 2] ** 2) + bump
@@ -170,6 +179,17 @@ PROBLEMS = [
             "3-D ball cut by a plane, optimum on the cut", role="held-out"),
     Problem("dip-1d", (0.0,), (10.0,), (2.2,), lambda X: (X[:, 0] > 1.0) & (X[:, 0] < 8.5), _dip_1d,
             "1-D local peak by the start, the optimum at the far edge across a dip", role="held-out"),
+    # held-out (batch 4): written before the far look's directed value, run once after it
+    Problem("basin-2d", (-2.5, -2.5), (2.5, 2.5), (-1.1, -0.9), _ball((0.0, 0.0), 2.0),
+            _two_peaks((-1.2, -0.8), (1.3, 0.9), 0.5), "2-D disc, a local peak by the start, the optimum "
+            "across a valley", role="held-out"),
+    Problem("valley-3d", (-1.0,) * 3, (1.0,) * 3, (-0.45, 0.05, 0.0), _ball((0.0,) * 3, 0.9),
+            _two_peaks((-0.5, 0.0, 0.0), (0.5, 0.2, -0.1), 0.06), "3-D ball, a local peak by the start, the "
+            "optimum across a valley", role="held-out"),
+    Problem("ridge-2d", (-2.5, -1.5), (2.5, 1.5), (-1.4, 0.1),
+            lambda X: (np.abs(X[:, 0]) < 2.2) & (np.abs(X[:, 1]) < 1.0),
+            lambda X: 0.5 * np.exp(-((X[:, 0] + 1.5) ** 2 + X[:, 1] ** 2) / 0.3) + 0.15 * X[:, 0] - 0.1 * X[:, 1] ** 2,
+            "2-D rectangle, a local peak by the start, the optimum on the far edge", role="held-out"),
 ]
 
 _GRID = {1: 20001, 2: 401, 3: 71, 4: 29}
