@@ -185,3 +185,22 @@ def test_far_settings_are_checked():
     with pytest.raises(InputError, match="far_open"):
         SEIBConfig(far_open=-1.0)
     assert SEIBConfig(far_reach=()).far_reach == ()  # never look far
+
+
+def test_looking_far_heads_where_the_return_may_be_highest():
+    # three successes peaked at 0.25 in [0, 1], no failure: both sides of the band are open looking
+    # far, but the left ray ends at the box after about two length scales while the right one
+    # reaches four, where g_R has reverted to its prior: the right side promises more and scores more
+    X = np.array([0.2, 0.25, 0.3])[:, None]
+    r = np.array([0.8, 1.0, 0.8])
+    clf = GPClassifier(SquaredExponential(0.05, 10.0), prior_mean=-7.0).fit(X, np.ones(3, dtype=bool))
+    reg = GPRegression(SquaredExponential(0.1, 1.0), 0.01, prior_mean=0.0).fit(X, r)
+    grid = np.linspace(0, 1, 2001)[:, None]
+    scale = float(np.std(r))
+    plain = SEIB(reg, clf, 1.0, scale, beyond=True, box=([0.0], [1.0])).parts(grid)
+    far = SEIB(reg, clf, 1.0, scale, beyond=True, far=True, box=([0.0], [1.0])).parts(grid)
+    left, right = far["band"] & (grid[:, 0] < 0.25), far["band"] & (grid[:, 0] > 0.25)
+    assert np.any(far["ucb_gate"][left]) and np.any(far["ucb_gate"][right])
+    v_left, v_right = np.max(plain["boundary"][left]), np.max(plain["boundary"][right])
+    assert abs(v_left - v_right) < 1e-6 * v_right  # the boundary uncertainty alone cannot tell them apart
+    assert np.max(far["value"][right]) > 1.1 * np.max(far["value"][left])

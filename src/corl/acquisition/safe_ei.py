@@ -50,7 +50,11 @@ optimizer asks once more with the ray reaching ``far_reach`` (up to 4) length sc
 reverts to its prior, and a smaller margin ``far_rel * scale``, but only from band points that lie
 ``far_open`` (2) g_S length scales or more from every failed trial, on a ray that stays that far
 from them: a look into unexplored space, not along an edge already mapped (where R rising outward
-would otherwise pull every far look back into the known boundary).
+would otherwise pull every far look back into the known boundary). Looking far, the boundary term
+is weighted by the promise, ``w_b * V * (max_k UCB_R - R^+_mu - far_rel * scale) / scale``: the
+search heads where R may be highest instead of growing the safe set evenly around its whole
+frontier (in 2-D that costs a trial per length scale of frontier, and the valley's returns pull
+g_R's prior mean down before the far side is reached).
 
 Glossary
 --------
@@ -169,7 +173,10 @@ class SEIB:
             gate = np.ones(len(X), dtype=bool)
             if self.gated and self.beyond:  # UCB_R on the ray beyond the band point
                 rel = cfg.far_rel if self.far else cfg.beyond_rel
-                gate = band & (self.reach_ucb(X, band) > self.incumbent + rel * self.scale)
+                excess = self.reach_ucb(X, band) - (self.incumbent + rel * self.scale)
+                gate = band & (excess > 0)
+                if self.far:  # toward the largest promise, not around the whole frontier
+                    boundary = boundary * np.where(gate, excess, 0.0) / self.scale
             elif self.gated:  # UCB_R at the band point
                 gate = mu + cfg.beta * np.sqrt(var) > self.best_return + xi
         edge = np.where(band & gate, np.maximum(ei, cfg.boundary_weight * boundary), 0.0)
