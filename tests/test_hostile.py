@@ -3,19 +3,11 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
-HOSTILE = Path(__file__).resolve().parents[1] / "benchmarks" / "hostile.py"
+from benchmark_module import load_benchmark
 
 
 def _hostile():
-    spec = importlib.util.spec_from_file_location("hostile", HOSTILE)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["hostile"] = module  # dataclasses look their module up there
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("hostile")
 
 
 def test_fast_subset_of_hostile_inputs():

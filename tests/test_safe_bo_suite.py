@@ -2,24 +2,16 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
-
-SUITE = Path(__file__).resolve().parents[1] / "benchmarks" / "safe_bo_suite.py"
+from benchmark_module import load_benchmark
 
 
 @pytest.fixture(scope="module")
 def suite():
-    spec = importlib.util.spec_from_file_location("safe_bo_suite", SUITE)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["safe_bo_suite"] = module  # dataclasses look their module up there
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("safe_bo_suite")
 
 
 def test_every_problem_has_safe_starts_in_the_box_and_an_optimum_above_them(suite):
