@@ -190,6 +190,16 @@ PROBLEMS = [
             lambda X: (np.abs(X[:, 0]) < 2.2) & (np.abs(X[:, 1]) < 1.0),
             lambda X: 0.5 * np.exp(-((X[:, 0] + 1.5) ** 2 + X[:, 1] ** 2) / 0.3) + 0.15 * X[:, 0] - 0.1 * X[:, 1] ** 2,
             "2-D rectangle, a local peak by the start, the optimum on the far edge", role="held-out"),
+    # held-out (batch 5): written before the far look's optimism was looked at, run once after it
+    Problem("lobes-3d", (-2.0, -1.0, -1.0), (2.0, 1.0, 1.0), (-1.0, 0.1, 0.0),
+            lambda X: (_ball((-1.0, 0.0, 0.0), 0.8)(X) | _ball((1.0, 0.0, 0.0), 0.8)(X)
+                       | (np.linalg.norm(X[:, 1:], axis=1) < 0.35) & (np.abs(X[:, 0]) < 1.0)),
+            _sq((1.2, 0.3, -0.2)), "3-D two balls joined by a tube, optimum in the far ball", role="held-out"),
+    Problem("bowl-1d", (-5.0,), (5.0,), (-3.0,), lambda X: np.abs(X[:, 0]) < 4.0, _sq((2.0,), 0.2),
+            "1-D smooth bowl, optimum inside, far from the start", role="held-out"),
+    Problem("wave-2d", (-2.0, -2.0), (2.0, 2.0), (-0.5, -0.4), _ball((0.0, 0.0), 1.7),
+            lambda X: np.sin(2.0 * X[:, 0]) * np.cos(1.5 * X[:, 1]) + 0.3 * X[:, 1],
+            "2-D disc, a wavy R with several peaks", role="held-out"),
 ]
 
 _GRID = {1: 20001, 2: 401, 3: 71, 4: 29}
