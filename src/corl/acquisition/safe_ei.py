@@ -40,8 +40,9 @@ further out (a GP that reverts to its prior mean). When the band-point gate leav
 
 where the ray ends at the first point known to fail (within ``ray_open`` g_S length scales of a
 failed trial: g_S's negative prior mean makes its ``p`` hardly lower there than in unexplored
-space, so the failures themselves are asked) and at the box. The margin ``beyond_rel * scale`` is larger than ``xi``: the step risks a failure
-in the band, so it must promise a real gain, not a sliver along an edge already mapped.
+space, so the failures themselves are asked) and at the box. The margin ``beyond_rel * scale``
+is larger than ``xi``: the step risks a failure in the band, so it must promise a real gain, not a
+sliver along an edge already mapped.
 
 Looking far (``far=True``). One length scale is not enough to cross a valley of R wider than
 that (a local peak by the start, the optimum a few length scales away through safe but unexplored
@@ -139,7 +140,7 @@ class SEIB:
         that are not known to fail; the optimizer asks this when the band-point gate would stop.
     far : with ``beyond``, look far instead: rays of ``far_reach`` length scales, margin
         ``far_rel``, and only band points and ray points ``far_open`` g_S length scales or more
-        from every failed trial.
+        from every failed trial; the boundary term is weighted by the gain the ray promises.
     box : ``(lower, upper)`` of the search box, (m,) each; ray points outside it do not count.
     """
 
