@@ -452,9 +452,10 @@ def main(argv=None) -> None:
     ap.add_argument("--json", default=None, help="write every run's numbers here")
     ap.add_argument("--table", nargs="+", default=None, metavar="JSON",
                     help="run nothing: print the table of runs saved with --json (several files are merged)")
+    ap.add_argument("--markdown", action="store_true", help="with --table: a Markdown table")
     args = ap.parse_args(argv)
     if args.table:
-        print_table(args.table, args.budget)
+        print_table(args.table, args.budget, markdown=args.markdown)
         return
 
     runners = {"CORL": run_corl, "PIBU": run_pibu, "PIBU(l=w/10)": run_pibu_tenth}
@@ -502,7 +503,7 @@ def main(argv=None) -> None:
         Path(args.json).write_text(json.dumps(records, indent=1))
 
 
-def print_table(paths, budget: int = 40) -> None:
+def print_table(paths, budget: int = 40, markdown: bool = False) -> None:
     """The table of saved runs (``--json`` files, merged; a start saved twice counts once, the last)."""
     runs: dict = {}
     for path in paths:
@@ -510,14 +511,19 @@ def print_table(paths, budget: int = 40) -> None:
             runs.setdefault((rec["problem"], rec["method"]), {})[rec["start"]] = rec
     order = {p.name: k for k, p in enumerate(PROBLEMS)}
     by_name = {p.name: p for p in PROBLEMS}
-    print(f"Safe BO suite: {budget} trials, start told first; found = within 2 % of the return range")
-    print(f"{'problem':<14} {'set':<9} {'method':<13} {'found':>7} {'fail':>6} {'beyond':>7} {'trials':>7} {'ms/it':>8}")
-    print("-" * 78)
+    if markdown:
+        print("| problem | set | method | found | failures | beyond | trials | ms/it |")
+        print("|---|---|---|---|---|---|---|---|")
+    else:
+        print(f"Safe BO suite: {budget} trials, start told first; found = within 2 % of the return range")
+        print(f"{'problem':<14} {'set':<9} {'method':<13} {'found':>7} {'fail':>6} {'beyond':>7} {'trials':>7} {'ms/it':>8}")
+        print("-" * 78)
     methods = ["CORL", "PIBU", "PIBU(l=w/10)", "BoTorch", "SafeOpt"]
     rank = {m: k for k, m in enumerate(methods)}
     for prob, name in sorted(runs, key=lambda k: (order.get(k[0], len(order)), rank.get(k[1], len(rank)), k[1])):
         recs = list(runs[(prob, name)].values())
-        print(_row(by_name[prob], name, recs, float(np.mean([r["ms"] for r in recs]))))
+        row = _row(by_name[prob], name, recs, float(np.mean([r["ms"] for r in recs])))
+        print("| " + " | ".join(row.split()) + " |" if markdown else row)
 
 
 def _row(p, name, runs, ms) -> str:

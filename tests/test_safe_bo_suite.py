@@ -40,3 +40,6 @@ def test_a_run_split_by_start_range_merges_into_the_unsplit_table(suite, tmp_pat
     suite.main(["--table", str(tmp_path / "a.json"), str(tmp_path / "b.json")])
     merged = [line for line in capsys.readouterr().out.splitlines() if line.startswith("edge-1d")]
     assert len(merged) == 1 and merged[0].split()[3] == f"{sum(r['found'] for r in whole)}/4"
+    suite.main(["--table", str(tmp_path / "all.json"), "--markdown"])
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| edge-1d")]
+    assert len(rows) == 1 and rows[0].split(" | ")[:-1] == ["| " + merged[0].split()[0], *merged[0].split()[1:-1]]
