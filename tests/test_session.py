@@ -171,3 +171,22 @@ def test_export_parquet_round_trip(tmp_path):
     assert got == expected
     w = np.load(arrays_path, allow_pickle=False)["w"]
     assert w.shape == (30, 2)
+
+
+def test_corl_overrides_keep_the_default_settings_of_a_user_task(monkeypatch):
+    # --no-rollout-every-step used to rebuild a user's task with the synthetic paper GPs, not the
+    # fitted ones a user's task gets otherwise
+    import corl.methods as methods
+    from corl.session import _build
+
+    seen = {}
+    monkeypatch.setattr(methods, "make_method", lambda name, task, *, seed, settings=None: seen.update(s=settings))
+
+    class Mine(SyntheticTask):
+        name = "mine"
+
+    _build(Mine(), "CORL", 0, {"rollout_every_step": False})
+    assert seen["s"].regression == methods.USER_SETTINGS.regression
+    assert seen["s"].regression.fit_hyperparameters and seen["s"].corl.rollout_every_step is False
+    _build(SyntheticTask(), "CORL+PIBU", 0, {"rollout_every_step": False})
+    assert seen["s"].regression == methods.MethodSettings().regression  # the paper's, for the paper's task

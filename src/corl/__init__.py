@@ -45,6 +45,7 @@ _LAZY = {  # public name -> module that defines it
     "make_optimizer": "corl.optimizers.registry",
     "register_optimizer": "corl.optimizers.registry",
     "OptimizerSettings": "corl.optimizers.registry",
+    "SEIBConfig": "corl.acquisition.safe_ei",
     "OPTIMIZERS": "corl.optimizers.registry",
     "StopReason": "corl.optimizers.base",
     "Bounds": "corl.problem",

@@ -25,7 +25,7 @@ from corl.optimizers.registry import OPTIMIZERS
 from corl.problem import Task
 from corl.settings import MethodSettings  # re-exported: defined below the tasks
 
-__all__ = ["MethodSettings", "METHODS", "PAPER_FIG1", "DEFAULT_METHOD", "USER_SETTINGS", "make_method"]
+__all__ = ["MethodSettings", "METHODS", "PAPER_FIG1", "DEFAULT_METHOD", "USER_SETTINGS", "make_method", "settings_for"]
 
 PAPER_FIG1 = {  # found/100, failures mean, std, max distance mean, std
     "PIBU": (100, 8.49, 1.35, 0.71, 0.44),
@@ -58,23 +58,32 @@ def _factory(name: str, s: MethodSettings) -> Callable:
     return lambda b, x0, rng, n: build(b, x0, budget=n, rng=rng, settings=settings)
 
 
+def settings_for(task: Task) -> MethodSettings:
+    """The settings a method gets for ``task`` when none are given.
+
+    The task's own (``task.method_settings()``, e.g. the door's hyperparameters from Sec. VIII-B),
+    the paper's synthetic values for the synthetic task, or, for a user's task,
+    :data:`USER_SETTINGS` (hyperparameters fitted from the data).
+    """
+    preset = getattr(task, "method_settings", None)  # corl.problem.HasMethodSettings
+    if callable(preset):
+        settings = preset()
+    else:
+        settings = MethodSettings() if getattr(task, "name", None) == "synthetic" else USER_SETTINGS
+    if not isinstance(settings, MethodSettings):
+        raise InputError(f"task '{task.name}': method_settings() returned {type(settings).__name__}; "
+                         "it must return a corl.settings.MethodSettings")
+    return settings
+
+
 def make_method(name: str, task: Task, *, seed: int = 0, settings: MethodSettings | None = None):
     """Build the learner called ``name`` (a Fig. 1 row) for ``task``; it speaks ask/tell/run.
 
-    ``settings`` default to the task's own (``task.method_settings()``, e.g. the door's
-    hyperparameters from Sec. VIII-B), the paper's synthetic values for the synthetic task, or,
-    for a user's task, :data:`USER_SETTINGS` (hyperparameters fitted from the data).
-    ``"CORL"`` is Alg. 1 with SEIB (:data:`DEFAULT_METHOD`).
+    ``settings`` default to :func:`settings_for` the task. ``"CORL"`` is Alg. 1 with SEIB
+    (:data:`DEFAULT_METHOD`).
     """
     if settings is None:
-        preset = getattr(task, "method_settings", None)  # corl.problem.HasMethodSettings
-        if callable(preset):
-            settings = preset()
-        else:
-            settings = MethodSettings() if getattr(task, "name", None) == "synthetic" else USER_SETTINGS
-        if not isinstance(settings, MethodSettings):
-            raise InputError(f"task '{task.name}': method_settings() returned {type(settings).__name__}; "
-                             "it must return a corl.settings.MethodSettings")
+        settings = settings_for(task)
     if name == "CORL" or name.startswith("CORL+"):
         inner = _factory("SEIB" if name == "CORL" else name[len("CORL+"):], settings)
         return CORL(task, lambda b, x0, rng: inner(b, x0, rng, _UNCOUNTED), settings.corl, seed=seed)

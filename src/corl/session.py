@@ -34,13 +34,11 @@ def _build(task: Task, method: str, seed: int, corl_overrides: dict | None = Non
     """The learner; ``corl_overrides`` replace fields of the task's CORLConfig (``--rollout-every-step``)."""
     from dataclasses import replace
 
-    from corl.methods import make_method
-    from corl.settings import MethodSettings
+    from corl.methods import make_method, settings_for
 
     if not corl_overrides:
         return make_method(method, task, seed=seed)
-    preset = getattr(task, "method_settings", None)  # corl.problem.HasMethodSettings
-    settings = preset() if callable(preset) else MethodSettings()
+    settings = settings_for(task)  # the same defaults as without overrides (a user's task: fitted GPs)
     return make_method(method, task, seed=seed, settings=replace(settings, corl=replace(settings.corl, **corl_overrides)))
 
 

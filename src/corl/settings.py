@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from corl.acquisition.safe_ei import SEIBConfig
 from corl.errors import InputError
 from corl.learner import CORLConfig
 from corl.optimizers.gpconfig import (
@@ -43,6 +44,7 @@ class MethodSettings:
     direct_budget : trials of a method that searches w directly, the demonstration included.
     failure_return : the return a safety-blind method is told for a failure.
     ucb_kappa, cma_sigma0 : UCB's exploration weight; CMA-ES's initial step in the unit box.
+    seib : the acquisition settings of ``CORL``'s black-box step (:class:`SEIBConfig`).
     theta_scale : per-dimension unit of theta distances in the stopping rules (None: theta's own
         units). A task whose length scales are stretched per dimension (ARD) gives the same stretch
         here, so that "near a sampled point" means the same thing along every axis.
@@ -56,6 +58,7 @@ class MethodSettings:
     ucb_kappa: float = 2.0
     cma_sigma0: float = 0.3
     theta_scale: tuple[float, ...] | None = None
+    seib: SEIBConfig = field(default_factory=SEIBConfig)
 
     def __post_init__(self) -> None:
         if not isinstance(self.corl, CORLConfig):
@@ -69,4 +72,4 @@ class MethodSettings:
         return OptimizerSettings(regression=self.regression, classifier=self.classifier,
                                  failure_return=self.failure_return, ucb_kappa=self.ucb_kappa,
                                  cma_sigma0=self.cma_sigma0, stop_distance=1e-3, step_distance=self.corl.eps_theta,
-                                 distance_scale=self.theta_scale)
+                                 distance_scale=self.theta_scale, seib=self.seib)

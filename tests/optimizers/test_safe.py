@@ -136,3 +136,30 @@ def test_looks_far_across_a_valley_wider_than_a_length_scale():
     assert near.best[1] < 0.71 and near.stop_reason is not StopReason.BUDGET  # stops at the local peak
     assert abs(far.best[0][0] - 7.5) < 0.1 and far.best[1] > 0.99  # looking far crosses to the optimum
     assert np.sum(~far.success_) <= 2 and far.n_evals < 40  # with few failures, and still stops
+
+
+def test_a_user_sets_corl_s_acquisition_through_the_public_settings():
+    from dataclasses import replace
+
+    import corl
+
+    box = (np.array([0.0]), np.array([10.0]))
+    fitted = corl.OptimizerSettings.for_box(corl.Bounds(*box), fitted=True)
+    assert fitted.regression.fit_hyperparameters and fitted.seib == corl.SEIBConfig()
+    runs = {}
+    for name, settings in [("default", None), ("no far look", replace(fitted, seib=corl.SEIBConfig(far_reach=())))]:
+        result = corl.optimize(_valley_rollout, box, start=[2.5], method="CORL", budget=40, seed=0, settings=settings)
+        runs[name] = result
+    assert runs["default"].return_ > 0.99  # crosses the valley (as the test above, through corl.optimize)
+    assert runs["no far look"].return_ < 0.71 and runs["no far look"].trials < runs["default"].trials
+
+
+def test_method_settings_carry_seib_to_corl_s_black_box_step():
+    from dataclasses import replace
+
+    from corl.acquisition.safe_ei import SEIBConfig
+    from corl.methods import USER_SETTINGS
+
+    mine = SEIBConfig(far_reach=(), p_band=0.6)
+    assert USER_SETTINGS.optimizer_settings().seib == SEIBConfig()
+    assert replace(USER_SETTINGS, seib=mine).optimizer_settings().seib is mine

@@ -23,6 +23,7 @@ from typing import Callable
 import numpy as np
 
 from corl.acquisition import PIBUConfig, PIBUVariant
+from corl.acquisition.safe_ei import SEIBConfig
 from corl.errors import InputError
 from corl.optimizers.base import BlackBoxOptimizer
 from corl.optimizers.bo import BOConfig, PIBUOptimizer, StopRule, UCBOptimizer
@@ -54,6 +55,8 @@ class OptimizerSettings:
     distance_scale : (m,) the unit the two distances are measured in per dimension, or None
         (theta's own units). SAL measures in theta's own units.
     sal : SAL's settings; None takes ``SALConfig(regression=regression)``.
+    seib : CORL's (SEIB's) acquisition settings, e.g. ``SEIBConfig(far_reach=())`` never looks far
+        past what it has tried before stopping (fewer trials and failures, no valley crossing).
 
     The defaults are the paper's synthetic values, in the synthetic benchmark's units;
     :meth:`for_box` scales them to any box.
@@ -68,6 +71,7 @@ class OptimizerSettings:
     step_distance: float = 3e-3
     distance_scale: tuple[float, ...] | None = None
     sal: SALConfig | None = None
+    seib: SEIBConfig = field(default_factory=SEIBConfig)
 
     def __post_init__(self) -> None:
         if not np.isfinite(self.failure_return):
@@ -76,15 +80,20 @@ class OptimizerSettings:
             raise InputError("stop_distance and step_distance must be >= 0")
 
     @classmethod
-    def for_box(cls, bounds: Bounds) -> "OptimizerSettings":
+    def for_box(cls, bounds: Bounds, *, fitted: bool = False) -> "OptimizerSettings":
         """Settings in units of ``bounds``: GP length scales a tenth of the width per dimension,
-        stopping distances a fraction of the width (0.1 % near a sampled point, 0.3 % per step)."""
+        stopping distances a fraction of the width (0.1 % near a sampled point, 0.3 % per step).
+        ``fitted``: GPs whose hyperparameters are fitted from the data instead (what "CORL" and
+        "SEIB" get without settings)."""
         width = np.asarray(bounds.width, dtype=float)
         ls = tuple(float(v) for v in BOX_LENGTHSCALE * width)
         mean_width = float(np.exp(np.mean(np.log(width))))  # SAL's scalar settings: the geometric mean
         regression = RegressionConfig(lengthscale=ls)
         sal = SALConfig(regression=regression, critical_distance=0.08 * mean_width,
                         safety_lengthscale=BOX_LENGTHSCALE * mean_width, stop_distance=1e-3 * mean_width)
+        if fitted:
+            return cls(regression=FITTED_REGRESSION, classifier=FITTED_CLASSIFIER,
+                       distance_scale=tuple(float(v) for v in width), sal=sal)
         return cls(regression=regression, classifier=ClassifierConfig(lengthscale=ls),
                    distance_scale=tuple(float(v) for v in width), sal=sal)
 
@@ -156,7 +165,7 @@ def _seib(bounds, start, *, budget, rng, settings):
     from corl.optimizers.safe import SAFE_BO_CONFIG, SafeBOOptimizer
 
     config = replace(SAFE_BO_CONFIG, regression=settings.regression, classifier=settings.classifier)
-    return SafeBOOptimizer(bounds, config, max_evals=budget, seed=rng, start=start)
+    return SafeBOOptimizer(bounds, config, settings.seib, max_evals=budget, seed=rng, start=start)
 
 
 def as_bounds(bounds) -> Bounds:
@@ -193,7 +202,8 @@ def make_optimizer(name: str, bounds, start, *, budget: int = 50, seed=None,
     budget : trials in all, the start included (>= 1).
     seed : int, Generator or None.
     settings : :class:`OptimizerSettings`; None takes :meth:`OptimizerSettings.for_box` (with
-        fitted GPs for "CORL" and "SEIB").
+        ``fitted=True`` for "CORL" and "SEIB"). To change one thing, start from that:
+        ``replace(OptimizerSettings.for_box(box, fitted=True), seib=SEIBConfig(far_reach=()))``.
 
     Raises
     ------
@@ -208,10 +218,8 @@ def make_optimizer(name: str, bounds, start, *, budget: int = 50, seed=None,
         raise InputError(f"the start is not a point of the box: {exc}") from None
     if isinstance(budget, bool) or not isinstance(budget, (int, np.integer)) or budget < 1:
         raise InputError(f"budget (trials in all, the start included) must be an integer >= 1, got {budget!r}")
-    if settings is None:
-        settings = OptimizerSettings.for_box(box)
-        if name in FITTED_BY_DEFAULT:  # corl's default learns its GPs from the data
-            settings = replace(settings, regression=FITTED_REGRESSION, classifier=FITTED_CLASSIFIER)
+    if settings is None:  # corl's default (CORL, SEIB) learns its GPs from the data
+        settings = OptimizerSettings.for_box(box, fitted=name in FITTED_BY_DEFAULT)
     elif not isinstance(settings, OptimizerSettings):
         raise InputError(f"settings must be an OptimizerSettings, got {type(settings).__name__}")
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
