@@ -201,6 +201,17 @@ PROBLEMS = [
     Problem("wave-2d", (-2.0, -2.0), (2.0, 2.0), (-0.5, -0.4), _ball((0.0, 0.0), 1.7),
             lambda X: np.sin(2.0 * X[:, 0]) * np.cos(1.5 * X[:, 1]) + 0.3 * X[:, 1],
             "2-D disc, a wavy R with several peaks", role="held-out"),
+    # held-out (batch 6): written before the look beyond the band stopped counting the inner EI, run once after it
+    Problem("saddle-2d", (-2.0, -2.0), (2.0, 2.0), (-1.1, -0.4), _ball((0.0, 0.0), 1.8),
+            _two_peaks((-1.0, -0.5), (0.9, 0.9), 0.3), "2-D disc, a local peak by the start, the optimum "
+            "across a valley on the diagonal", role="held-out"),
+    Problem("cup-3d", (-1.5, -1.0, -1.0), (1.5, 1.0, 1.0), (-0.8, 0.1, 0.0),
+            lambda X: np.sum((X / np.array([1.3, 0.7, 0.7])) ** 2, axis=1) < 1.0,
+            lambda X: 0.5 * np.exp(-np.sum((X - np.array([-0.8, 0.0, 0.0])) ** 2, axis=1) / 0.1) + 0.2 * X[:, 0],
+            "3-D ellipsoid, a local peak by the start, the optimum on the far edge", role="held-out"),
+    Problem("knee-1d", (0.0,), (8.0,), (1.5,), lambda X: (X[:, 0] > 0.5) & (X[:, 0] < 7.0),
+            lambda X: 0.8 * np.exp(-((X[:, 0] - 1.6) ** 2) / 0.2) + 0.1 * X[:, 0],
+            "1-D a local peak by the start, R rising slowly to the far edge", role="held-out"),
 ]
 
 _GRID = {1: 20001, 2: 401, 3: 71, 4: 29}
