@@ -211,7 +211,7 @@ PROBLEMS = [
             "3-D ellipsoid, a local peak by the start, the optimum on the far edge", role="held-out"),
     Problem("knee-1d", (0.0,), (8.0,), (1.5,), lambda X: (X[:, 0] > 0.5) & (X[:, 0] < 7.0),
             lambda X: 0.8 * np.exp(-((X[:, 0] - 1.6) ** 2) / 0.2) + 0.1 * X[:, 0],
-            "1-D a local peak by the start, R rising slowly to the far edge", role="held-out"),
+            "1-D, the optimum by the start, R rising slowly toward the far edge but below it", role="held-out"),
 ]
 
 _GRID = {1: 20001, 2: 401, 3: 71, 4: 29}
