@@ -51,7 +51,9 @@ optimizer asks once more with the ray reaching ``far_reach`` (up to 4) length sc
 reverts to its prior, and a smaller margin ``far_rel * scale``, but only from band points that lie
 ``far_open`` (2) g_S length scales or more from every failed trial, on a ray that stays that far
 from them: a look into unexplored space, not along an edge already mapped (where R rising outward
-would otherwise pull every far look back into the known boundary). Looking far, the boundary term
+would otherwise pull every far look back into the known boundary). Only band points count then:
+the inner EI had its turn in the first ask, and its maximum beside the best point would otherwise
+stop the search there (the maximiser lands on a sampled point). Looking far, the boundary term
 is weighted by the promise, ``w_b * V * (max_k UCB_R - R^+_mu - far_rel * scale) / scale``: the
 search heads where R may be highest instead of growing the safe set evenly around its whole
 frontier (in 2-D that costs a trial per length scale of frontier, and the valley's returns pull
@@ -181,7 +183,8 @@ class SEIB:
             elif self.gated:  # UCB_R at the band point
                 gate = mu + cfg.beta * np.sqrt(var) > self.best_return + xi
         edge = np.where(band & gate, np.maximum(ei, cfg.boundary_weight * boundary), 0.0)
-        value = np.where(inner, ei, 0.0) + edge
+        far = self.gated and self.beyond and self.far  # looking far asks the band only: the inner EI
+        value = edge if far else np.where(inner, ei, 0.0) + edge  # had its turn and left nothing new
         return {"value": value, "ei": ei, "ucb_gate": gate, "boundary": boundary, "inner": inner,
                 "band": band, "proba": p}
 
