@@ -14,7 +14,7 @@ at most ``--budget`` (40) black-box trials in all. Printed per method and proble
 ``set`` says what each problem was to the design of CORL (SEIB): ``training`` problems were used to
 design it; ``seen`` ones were held out for one change, run once after it, and looked at while
 designing a later one (the look beyond the band, the look far); ``held-out`` ones were written
-before the last change that could move them and never used to choose anything.
+before a change, run once after it, and no change was kept because of them (docs/safe_bo_suite.md).
 Peers are optional (``pip install corl[bench]``): BoTorch's constrained LogEI with the success
 labels as a GP constraint (both GPs' hyperparameters fitted), and SafeOpt, which needs GPy and so
 numpy < 2: it runs in its own interpreter, ``--safeopt-python`` (a venv with safeopt), and is
