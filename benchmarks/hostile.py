@@ -39,12 +39,15 @@ def _env() -> dict[str, str]:
     env.pop("CORL_DEBUG", None)
     return env
 
-USERTASK = """
+def user_task_source(name: str) -> str:
+    """A user task module: ``make`` builds a synthetic task called ``name`` that counts its rollouts in
+    ``rollouts.txt`` beside the module; ``boom`` raises and ``not_a_task`` returns 42."""
+    return f"""
 import pathlib
 from corl.tasks.synthetic import SyntheticTask
 
 class Counting(SyntheticTask):
-    name = "synthetic"  # stands in for the synthetic task of the stores
+    name = {name!r}
     def rollout(self, w):
         log = pathlib.Path(__file__).with_name("rollouts.txt")
         log.write_text(log.read_text() + "x" if log.exists() else "x")
@@ -59,6 +62,10 @@ def boom():
 def not_a_task():
     return 42
 """
+
+
+USERTASK = user_task_source("synthetic")  # stands in for the synthetic task of the stores
+
 
 # Damage done to a copy of s.corl: (label, SQL) or raw bytes.
 DAMAGE = {

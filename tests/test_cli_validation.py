@@ -9,6 +9,7 @@ import sqlite3
 import sys
 
 import pytest
+from benchmark_module import load_benchmark
 from typer.testing import CliRunner
 
 from corl.cli import app
@@ -16,26 +17,7 @@ from corl.cli import app
 runner = CliRunner()
 
 # A user task that counts its rollouts in a file beside it, and factories that fail.
-COUNTING = """
-import pathlib
-from corl.tasks.synthetic import SyntheticTask
-
-class Counting(SyntheticTask):
-    name = "counting"
-    def rollout(self, w):
-        log = pathlib.Path(__file__).with_name("rollouts.txt")
-        log.write_text(log.read_text() + "x" if log.exists() else "x")
-        return super().rollout(w)
-
-def make():
-    return Counting((0.6, 0.4))
-
-def boom():
-    raise RuntimeError("the factory broke")
-
-def not_a_task():
-    return 42
-"""
+COUNTING = load_benchmark("hostile").user_task_source("counting")
 
 
 @pytest.fixture

@@ -64,27 +64,25 @@ class SafeBOOptimizer(_BayesOpt):
     def _propose(self) -> np.ndarray | StopReason:
         if not np.any(self.success_ & np.isfinite(self.returns_)):  # a safe method does not guess
             return StopReason.NO_SAFE_POINT
-        acq = self._acquisition()
-        self.last_acquisition = acq
-        x, value = maximize(acq, self.bounds, rng=self.rng, config=self.config.maximizer, extra=self.X_)
+        x, value = self._maximize()
         if self._stops(x, value):  # nothing at the band points: is R plausibly higher beyond them?
-            acq = self._acquisition(beyond=True)
-            self.last_acquisition = acq
-            x, value = maximize(acq, self.bounds, rng=self.rng, config=self.config.maximizer, extra=self.X_)
+            x, value = self._maximize(beyond=True)
         if self._stops(x, value) and self.seib.far_reach:  # nor one length scale out: far from failures?
-            acq = self._acquisition(beyond=True, far=True)
-            self.last_acquisition = acq
-            x, value = maximize(acq, self.bounds, rng=self.rng, config=self.config.maximizer, extra=self.X_)
+            x, value = self._maximize(beyond=True, far=True)
         few = np.sum(self.success_) < self.seib.trust_per_dim * self.bounds.dim
         if few and not value >= self.seib.stop_value:  # too few successes to trust the gate: open it
-            acq = self._acquisition(gated=False)
-            self.last_acquisition = acq
-            x, value = maximize(acq, self.bounds, rng=self.rng, config=self.config.maximizer, extra=self.X_)
+            x, value = self._maximize(gated=False)
         if not value >= self.seib.stop_value:
             return StopReason.NO_IMPROVEMENT  # nothing both plausible and safe is left, and no uncertain boundary
         if _stop(self.config.stop_rule, x, self.X_, self.config.stop_distance, self._scale):
             return StopReason.CONVERGED
         return x
+
+    def _maximize(self, **how) -> tuple[np.ndarray, float]:
+        """Maximise ``SEIB(**how)`` (:meth:`_acquisition`), kept as ``last_acquisition``: ``(x, value)``."""
+        self.last_acquisition = self._acquisition(**how)
+        return maximize(self.last_acquisition, self.bounds, rng=self.rng, config=self.config.maximizer,
+                        extra=self.X_)
 
     def _stops(self, x, value) -> bool:
         return not value >= self.seib.stop_value or _stop(self.config.stop_rule, x, self.X_,

@@ -87,13 +87,19 @@ def _assert_ball_step_is_optimal(H, Jh, g, h, u, radius, d, lam, z, nu):
     assert np.linalg.eigvalsh(Z.T @ (H + nu * np.eye(N)) @ Z)[0] > 0.0
 
 
-def test_ball_step_solves_the_trust_region_subproblem():
+def _ball_case():
+    """A trust-region subproblem whose ball is active: (Hb, H, support, Js, Jh, g, h, u, radius)."""
     Hb, H = banded_hessian(6, shift=0.05)
     support, Js, Jh = constraint_rows(7)
     rng = np.random.default_rng(8)
     g, h = 10.0 * rng.normal(size=N), 0.01 * rng.normal(size=3)
     u = rng.normal(size=N)
     radius = 1.5 * np.linalg.norm(u)
+    return Hb, H, support, Js, Jh, g, h, u, radius
+
+
+def test_ball_step_solves_the_trust_region_subproblem():
+    Hb, H, support, Js, Jh, g, h, u, radius = _ball_case()
     d, lam, z, nu = constrained_step(Hb, g, support, Js, h, u, radius)
     _assert_ball_step_is_optimal(H, Jh, g, h, u, radius, d, lam, z, nu)
     # A warm start from a nearby multiplier gives the same step.
@@ -147,12 +153,7 @@ def test_ball_iteration_stops_when_rounding_keeps_it_off_the_tolerance(monkeypat
     and returns the closest step it found, on the ball to rounding."""
     import corl.trajectory.solver.kkt as kkt
 
-    Hb, H = banded_hessian(6, shift=0.05)
-    support, Js, Jh = constraint_rows(7)
-    rng = np.random.default_rng(8)
-    g, h = 10.0 * rng.normal(size=N), 0.01 * rng.normal(size=3)
-    u = rng.normal(size=N)
-    radius = 1.5 * np.linalg.norm(u)
+    Hb, H, support, Js, Jh, g, h, u, radius = _ball_case()
     reference = constrained_step(Hb, g, support, Js, h, u, radius)
     monkeypatch.setattr(kkt, "_SECULAR_TOL", 0.0)
     built = []
