@@ -163,3 +163,16 @@ def test_method_settings_carry_seib_to_corl_s_black_box_step():
     mine = SEIBConfig(far_reach=(), p_band=0.6)
     assert USER_SETTINGS.optimizer_settings().seib == SEIBConfig()
     assert replace(USER_SETTINGS, seib=mine).optimizer_settings().seib is mine
+
+
+def test_a_wrong_seib_setting_is_refused_where_it_is_made():
+    from dataclasses import replace
+
+    import corl
+    from corl.methods import USER_SETTINGS
+
+    fitted = corl.OptimizerSettings.for_box(corl.Bounds(np.array([0.0]), np.array([1.0])), fitted=True)
+    with pytest.raises(InputError, match="OptimizerSettings.seib must be a corl.SEIBConfig, got str"):
+        replace(fitted, seib="far")
+    with pytest.raises(InputError, match="MethodSettings.seib must be a corl.SEIBConfig, got dict"):
+        replace(USER_SETTINGS, seib={"far_reach": ()})

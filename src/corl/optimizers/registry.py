@@ -78,6 +78,8 @@ class OptimizerSettings:
             raise InputError(f"failure_return must be finite, got {self.failure_return}")
         if not (self.stop_distance >= 0 and self.step_distance >= 0):
             raise InputError("stop_distance and step_distance must be >= 0")
+        if not isinstance(self.seib, SEIBConfig):
+            raise InputError(f"OptimizerSettings.seib must be a corl.SEIBConfig, got {type(self.seib).__name__}")
 
     @classmethod
     def for_box(cls, bounds: Bounds, *, fitted: bool = False) -> "OptimizerSettings":
