@@ -212,6 +212,20 @@ PROBLEMS = [
     Problem("knee-1d", (0.0,), (8.0,), (1.5,), lambda X: (X[:, 0] > 0.5) & (X[:, 0] < 7.0),
             lambda X: 0.8 * np.exp(-((X[:, 0] - 1.6) ** 2) / 0.2) + 0.1 * X[:, 0],
             "1-D, the optimum by the start, R rising slowly toward the far edge but below it", role="held-out"),
+    # held-out (batch 7): written before the doubting look was designed, run once after it
+    Problem("shelf-1d", (0.0,), (10.0,), (5.5,), lambda X: (X[:, 0] > 1.0) & (X[:, 0] < 9.0),
+            lambda X: 0.5 * np.exp(-((X[:, 0] - 5.5) ** 2) / 0.5) + np.exp(-((X[:, 0] - 1.8) ** 2) / 0.8),
+            "1-D, a local peak at the start, the optimum near the near edge across a valley", role="held-out"),
+    Problem("arc-2d", (-2.5, -2.5), (2.5, 2.5), (-1.5, 0.0),
+            lambda X: (np.linalg.norm(X, axis=1) > 1.0) & (np.linalg.norm(X, axis=1) < 2.0) & (X[:, 1] > -0.5),
+            _sq((1.5, 0.0)), "2-D arch (non-convex), the optimum at its other foot", role="held-out"),
+    Problem("twin-4d", (-1.0,) * 4, (1.0,) * 4, (-0.4, 0.0, 0.0, 0.0), _ball((0.0,) * 4, 0.9),
+            _two_peaks((-0.4, 0.0, 0.0, 0.0), (0.45, 0.1, -0.1, 0.1), 0.15),
+            "4-D ball, a local peak at the start, the optimum across a valley", role="held-out"),
+    Problem("slope-3d", (-1.0,) * 3, (1.0,) * 3, (0.3, 0.0, 0.0),
+            lambda X: np.sum((X / np.array([0.9, 0.7, 0.7])) ** 2, axis=1) < 1.0,
+            lambda X: 0.3 * X[:, 0] + 0.9 * np.exp(-np.sum((X - np.array([-0.6, 0.2, 0.0])) ** 2, axis=1) / 0.1),
+            "3-D ellipsoid, R rising toward one edge, the optimum a peak behind the start", role="held-out"),
 ]
 
 _GRID = {1: 20001, 2: 401, 3: 71, 4: 29}
