@@ -184,6 +184,8 @@ def test_far_settings_are_checked():
         SEIBConfig(far_reach=(-1.0,))
     with pytest.raises(InputError, match="far_open"):
         SEIBConfig(far_open=-1.0)
+    with pytest.raises(InputError, match="far_beta"):
+        SEIBConfig(far_beta=-0.5)
     assert SEIBConfig(far_reach=()).far_reach == ()  # never look far
 
 
@@ -204,3 +206,31 @@ def test_looking_far_heads_where_the_return_may_be_highest():
     v_left, v_right = np.max(plain["boundary"][left]), np.max(plain["boundary"][right])
     assert abs(v_left - v_right) < 1e-6 * v_right  # the boundary uncertainty alone cannot tell them apart
     assert np.max(far["value"][right]) > 1.1 * np.max(far["value"][left])
+
+
+@pytest.mark.parametrize("far_beta", [2.0, 3.0])
+def test_far_beta_is_the_ucb_width_on_the_far_ray_and_only_there(far_beta):
+    reg, clf, scale = _valley_models()
+    grid = np.linspace(0, 1, 2001)[:, None]
+    cfg = SEIBConfig(far_beta=far_beta)
+    far = SEIB(reg, clf, 1.0, scale, cfg, beyond=True, far=True, box=([0.0], [1.0]))
+    band = far.parts(grid)["band"]
+    X = grid[band][:: max(1, int(band.sum()) // 6)]
+    # by hand: rays of far_reach steps of min(l_R, l_S) = 0.05 along the outward normal (+-1 in 1-D),
+    # kept while inside [0, 1] and 2 g_S length scales (0.1) or more from the failure at 0.85
+    got = far.reach_ucb(X)
+    assert np.isfinite(got).sum() >= 2  # open rays on the left; the right ones end at the failure
+    for x, value in zip(X[:, 0], got):
+        n = far.outward(np.array([[x]]))[0, 0]
+        best = -np.inf
+        for d in cfg.far_reach:
+            t = x + d * 0.05 * n
+            if not (0.0 <= t <= 1.0 and abs(t - 0.85) >= 0.1):
+                break  # the ray ends at the box or at a known failure
+            mu, var = reg.predict(np.array([[t]]))
+            best = max(best, float(mu[0] + far_beta * np.sqrt(var[0])))
+        assert value == pytest.approx(best, rel=1e-9, abs=1e-9 * scale)
+    # the look beyond the band (one length scale out) keeps beta whatever far_beta is
+    near = SEIB(reg, clf, 1.0, scale, cfg, beyond=True, box=([0.0], [1.0])).reach_ucb(X)
+    plain = SEIB(reg, clf, 1.0, scale, beyond=True, box=([0.0], [1.0])).reach_ucb(X)
+    np.testing.assert_array_equal(near, plain)

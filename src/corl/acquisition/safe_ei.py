@@ -48,7 +48,9 @@ Looking far (``far=True``). One length scale is not enough to cross a valley of 
 that (a local peak by the start, the optimum a few length scales away through safe but unexplored
 space): there g_R still extrapolates the valley. When the look beyond leaves nothing either, the
 optimizer asks once more with the ray reaching ``far_reach`` (up to 4) length scales, where g_R
-reverts to its prior, and a smaller margin ``far_rel * scale``, but only from band points that lie
+reverts to its prior, with a UCB width of its own, ``far_beta`` (2, as ``beta``: a wider one
+crosses more valleys, but it lost on a held-out batch; docs/safe_bo_suite.md), and a smaller
+margin ``far_rel * scale``, but only from band points that lie
 ``far_open`` (2) g_S length scales or more from every failed trial, on a ray that stays that far
 from them: a look into unexplored space, not along an edge already mapped (where R rising outward
 would otherwise pull every far look back into the known boundary). Only band points count then:
@@ -109,14 +111,15 @@ class SEIBConfig:
     far_reach: tuple[float, ...] = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0)  # looking far; () never looks far
     far_rel: float = 0.1  # looking far: R must plausibly beat R^+_mu by this fraction of the spread
     far_open: float = 2.0  # looking far: band point and ray at least far_open g_S length scales from failures
+    far_beta: float = 2.0  # looking far: UCB_R width on the ray (2.5 crosses more valleys; see docs/safe_bo_suite.md)
 
     def __post_init__(self) -> None:
         if not 0.0 < self.p_band <= self.p_inner < 1.0:
             raise InputError(f"SEIB needs 0 < p_band <= p_inner < 1, got {self.p_band}, {self.p_inner}")
         if min(self.xi_rel, self.beta, self.boundary_weight, self.stop_value, self.trust_per_dim,
-               self.beyond_rel, self.ray_open, self.far_rel, self.far_open) < 0:
-            raise InputError("xi_rel, beta, boundary_weight, stop_value, trust_per_dim, beyond_rel, ray_open, far_rel "
-                             "and far_open must be >= 0 (beyond_rel=inf never looks beyond the band)")
+               self.beyond_rel, self.ray_open, self.far_rel, self.far_open, self.far_beta) < 0:
+            raise InputError("xi_rel, beta, boundary_weight, stop_value, trust_per_dim, beyond_rel, ray_open, far_rel, "
+                             "far_open and far_beta must be >= 0 (beyond_rel=inf never looks beyond the band)")
         if len(self.reach) == 0 or min(self.reach) < 0:
             raise InputError(f"reach needs at least one distance, all >= 0, got {self.reach}")
         if self.far_reach and min(self.far_reach) < 0:
@@ -210,8 +213,9 @@ class SEIB:
         ``n`` is the outward normal (:meth:`outward`) and ``d_k l`` a distance of ``d_k`` length
         scales along it, ``l = min(l_R, l_S)`` per dimension (``|step / l| = d_k``, ARD). The ray
         ends at its first point within ``ray_open`` g_S length scales of a failed trial and at the
-        box; the band point itself (``d = 0``) always counts. Looking far (``far``): ``far_reach``
-        and ``far_open`` instead, and the band point counts only if it is that far from failures.
+        box; the band point itself (``d = 0``) always counts. Looking far (``far``): ``far_reach``,
+        ``far_open`` and ``far_beta`` instead, and the band point counts only if it is that far from
+        failures.
         """
         X = np.asarray(X, dtype=float)
         out = np.full(len(X), -np.inf)
@@ -229,7 +233,8 @@ class SEIB:
         radius = self.config.far_open if self.far else self.config.ray_open
         pts = np.concatenate([Xb + d * step for d in reach])
         mu, var = self.regression.predict(pts)
-        ucb = (mu + self.config.beta * np.sqrt(floor_variance(var))).reshape(len(reach), -1)
+        beta = self.config.far_beta if self.far else self.config.beta
+        ucb = (mu + beta * np.sqrt(floor_variance(var))).reshape(len(reach), -1)
         open_ = np.ones(ucb.shape, dtype=bool)
         failed = self.classifier.X_[self.classifier.y_ < 0]
         if len(failed):  # known to fail: within ray_open g_S length scales of a failed trial
