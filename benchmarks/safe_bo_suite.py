@@ -482,9 +482,17 @@ def main(argv=None) -> None:
     ap.add_argument("--table", nargs="+", default=None, metavar="JSON",
                     help="run nothing: print the table of runs saved with --json (several files are merged)")
     ap.add_argument("--markdown", action="store_true", help="with --table: a Markdown table")
+    ap.add_argument("--verdict", action="store_true",
+                    help="with --table: CORL beside the best-finding and the least-failing peer on each problem, "
+                         "and on how many problems it finds as often and fails less")
+    ap.add_argument("--compare", nargs=2, default=None, metavar=("BEFORE", "AFTER"),
+                    help="run nothing: CORL's runs in two --json files side by side, per problem")
     args = ap.parse_args(argv)
+    if args.compare:
+        print_compare(*args.compare, markdown=args.markdown)
+        return
     if args.table:
-        print_table(args.table, args.budget, markdown=args.markdown)
+        (print_verdict if args.verdict else print_table)(args.table, args.budget, markdown=args.markdown)
         return
 
     runners = {"CORL": run_corl, "PIBU": run_pibu, "PIBU(l=w/10)": run_pibu_tenth}
@@ -532,12 +540,27 @@ def main(argv=None) -> None:
         Path(args.json).write_text(json.dumps(records, indent=1))
 
 
-def print_table(paths, budget: int = 40, markdown: bool = False) -> None:
-    """The table of saved runs (``--json`` files, merged; a start saved twice counts once, the last)."""
+def load_runs(paths) -> dict:
+    """``{(problem, method): {start: record}}`` from ``--json`` files, merged (a start saved twice: the last)."""
     runs: dict = {}
     for path in paths:
         for rec in json.loads(Path(path).read_text()):
             runs.setdefault((rec["problem"], rec["method"]), {})[rec["start"]] = rec
+    return runs
+
+
+def summarize(records) -> dict:
+    """n, found (count and rate), failures per run, farthest failure and trials per run of some runs."""
+    recs = list(records)
+    n = len(recs)
+    found = sum(bool(r["found"]) for r in recs)
+    return {"n": n, "found": found, "rate": found / n, "fail": float(np.mean([r["fail"] for r in recs])),
+            "beyond": float(max(r["beyond"] for r in recs)), "trials": float(np.mean([r["trials"] for r in recs]))}
+
+
+def print_table(paths, budget: int = 40, markdown: bool = False) -> None:
+    """The table of saved runs (``--json`` files, merged; a start saved twice counts once, the last)."""
+    runs = load_runs(paths)
     order = {p.name: k for k, p in enumerate(PROBLEMS)}
     by_name = {p.name: p for p in PROBLEMS}
     if markdown:
@@ -553,6 +576,82 @@ def print_table(paths, budget: int = 40, markdown: bool = False) -> None:
         recs = list(runs[(prob, name)].values())
         row = _row(by_name[prob], name, recs, float(np.mean([r["ms"] for r in recs])))
         print("| " + " | ".join(row.split()) + " |" if markdown else row)
+
+
+def verdict(runs: dict, method: str = "CORL") -> list[dict]:
+    """Per problem with runs of ``method`` and of a peer: the issue's two must-show comparisons.
+
+    ``finds``: ``method`` finds the optimum at least as often (as a rate: starts may differ) as
+    the best-finding peer. ``fails_less``: it fails less often per run than every peer that finds
+    the optimum at least as often as it does (a peer that rarely leaves the start fails little and
+    finds little; ``fails_less_all`` compares with every peer).
+    """
+    out = []
+    for p in PROBLEMS:
+        if (p.name, method) not in runs:
+            continue
+        me = summarize(runs[(p.name, method)].values())
+        peers = {m: summarize(r.values()) for (name, m), r in runs.items() if name == p.name and m != method}
+        if not peers:
+            continue
+        best = max(peers, key=lambda m: (peers[m]["rate"], -peers[m]["fail"]))
+        fewest = min(peers, key=lambda m: (peers[m]["fail"], -peers[m]["rate"]))
+        finders = [m for m in peers if peers[m]["rate"] >= me["rate"]]
+        out.append({"problem": p.name, "set": p.role, "me": me, "peers": peers, "best": best, "fewest": fewest,
+                    "finds": me["rate"] >= peers[best]["rate"],
+                    "fails_less": all(me["fail"] < peers[m]["fail"] for m in finders),
+                    "fails_less_all": all(me["fail"] < q["fail"] for q in peers.values())})
+    return out
+
+
+def print_verdict(paths, budget: int = 40, markdown: bool = False, method: str = "CORL") -> None:
+    """CORL beside the best-finding and the least-failing peer per problem, and the counts."""
+    rows = verdict(load_runs(paths), method)
+    yes = {True: "yes", False: "no"}
+    head = ["problem", "set", f"{method} found", "failures", "beyond", "best peer at finding",
+            "fewest failures among peers", "finds as often", "fails less"]
+    if markdown:
+        print("| " + " | ".join(head) + " |")
+        print("|" + "---|" * len(head))
+    else:
+        print(f"Safe BO suite, {budget} trials: {method} beside the peers (found = within 2 % of the return range)")
+    for v in rows:
+        me, b, f = v["me"], v["peers"][v["best"]], v["peers"][v["fewest"]]
+        cells = [v["problem"], v["set"], f"{me['found']}/{me['n']}", f"{me['fail']:.1f}", f"{me['beyond']:.3f}",
+                 f"{v['best']} {b['found']}/{b['n']}, {b['fail']:.1f} failures",
+                 f"{v['fewest']} {f['fail']:.1f} ({f['found']}/{f['n']} found)", yes[v["finds"]], yes[v["fails_less"]]]
+        print("| " + " | ".join(cells) + " |" if markdown else "  ".join(cells))
+    n = len(rows)
+    print(f"\n{method} finds the optimum at least as often as the best peer on {sum(v['finds'] for v in rows)} "
+          f"of {n} problems, and fails less often than every peer that finds it as often on "
+          f"{sum(v['fails_less'] for v in rows)} of {n} (than every peer: {sum(v['fails_less_all'] for v in rows)}).")
+
+
+def print_compare(before: str, after: str, markdown: bool = False, method: str = "CORL") -> None:
+    """``method``'s runs in two ``--json`` files per problem: found, failures, beyond, trials, before -> after."""
+    a, b = load_runs([before]), load_runs([after])
+    head = ["problem", "set", "found", "failures", "beyond", "trials"]
+    if markdown:
+        print("| " + " | ".join(head) + " |")
+        print("|" + "---|" * len(head))
+    else:
+        print(f"{method}: {before} -> {after}")
+    tot = {"found": [0, 0], "n": [0, 0], "fail": [[], []]}
+    for p in PROBLEMS:
+        if (p.name, method) not in a or (p.name, method) not in b:
+            continue
+        x, y = summarize(a[(p.name, method)].values()), summarize(b[(p.name, method)].values())
+        cells = [p.name, p.role, f"{x['found']}/{x['n']} → {y['found']}/{y['n']}", f"{x['fail']:.1f} → {y['fail']:.1f}",
+                 f"{x['beyond']:.3f} → {y['beyond']:.3f}", f"{x['trials']:.1f} → {y['trials']:.1f}"]
+        print("| " + " | ".join(cells) + " |" if markdown else "  ".join(cells))
+        for k, s in enumerate((x, y)):
+            tot["found"][k] += s["found"]
+            tot["n"][k] += s["n"]
+            tot["fail"][k].append(s["fail"])
+    if tot["fail"][0]:
+        cells = [f"all {len(tot['fail'][0])}", "", f"{tot['found'][0]}/{tot['n'][0]} → {tot['found'][1]}/{tot['n'][1]}",
+                 f"{np.mean(tot['fail'][0]):.2f} → {np.mean(tot['fail'][1]):.2f} (mean per problem)", "", ""]
+        print("| " + " | ".join(cells) + " |" if markdown else "  ".join(c for c in cells if c))
 
 
 def _row(p, name, runs, ms) -> str:

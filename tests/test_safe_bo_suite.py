@@ -43,3 +43,37 @@ def test_a_run_split_by_start_range_merges_into_the_unsplit_table(suite, tmp_pat
     suite.main(["--table", str(tmp_path / "all.json"), "--markdown"])
     rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| edge-1d")]
     assert len(rows) == 1 and rows[0].split(" | ")[:-1] == ["| " + merged[0].split()[0], *merged[0].split()[1:-1]]
+
+
+def _records(problem, method, found, fail):
+    return [{"problem": problem, "method": method, "start": i, "found": f, "fail": k, "beyond": 0.01 * k,
+             "trials": 10 + k, "ms": 1.0} for i, (f, k) in enumerate(zip(found, fail))]
+
+
+def test_the_verdict_compares_rates_and_only_with_peers_that_find_as_often(suite, tmp_path, capsys):
+    recs = (_records("edge-1d", "CORL", [True, True], [1, 1]) + _records("edge-1d", "A", [True, True], [3, 3])
+            + _records("edge-1d", "B", [False, False], [0, 1])  # fails less, finds nothing
+            + _records("inside-2d", "CORL", [True, False], [0, 0]) + _records("inside-2d", "A", [True], [5]))
+    path = tmp_path / "runs.json"
+    path.write_text(json.dumps(recs))
+    rows = {v["problem"]: v for v in suite.verdict(suite.load_runs([path]))}
+    assert set(rows) == {"edge-1d", "inside-2d"}
+    edge, inside = rows["edge-1d"], rows["inside-2d"]
+    assert edge["best"] == "A" and edge["fewest"] == "B"
+    assert edge["finds"] and edge["fails_less"] and not edge["fails_less_all"]
+    assert not inside["finds"]  # 1/2 against 1/1: a rate, not a count
+    assert inside["fails_less"]  # 0 failures against A's 5
+    suite.main(["--table", str(path), "--verdict", "--markdown"])
+    out = capsys.readouterr().out
+    assert "| edge-1d | training | 2/2 | 1.0 | 0.010 | A 2/2, 3.0 failures | B 0.5 (0/2 found) | yes | yes |" in out
+    assert "on 1 of 2 problems" in out and "as often on 2 of 2 (than every peer: 1)" in out
+
+
+def test_compare_puts_two_runs_of_corl_side_by_side(suite, tmp_path, capsys):
+    (tmp_path / "a.json").write_text(json.dumps(_records("edge-1d", "CORL", [False, True], [2, 0])))
+    (tmp_path / "b.json").write_text(json.dumps(_records("edge-1d", "CORL", [True, True], [1, 1])
+                                                + _records("edge-1d", "A", [True, True], [9, 9])))
+    suite.main(["--compare", str(tmp_path / "a.json"), str(tmp_path / "b.json"), "--markdown"])
+    out = capsys.readouterr().out.splitlines()
+    assert "| edge-1d | training | 1/2 → 2/2 | 1.0 → 1.0 | 0.020 → 0.010 | 11.0 → 11.0 |" in out
+    assert out[-1].startswith("| all 1 |  | 1/2 → 2/2 | 1.00 → 1.00")
