@@ -229,6 +229,21 @@ PROBLEMS = [
             lambda X: np.sum((X / np.array([0.9, 0.7, 0.7])) ** 2, axis=1) < 1.0,
             lambda X: 0.3 * X[:, 0] + 0.9 * np.exp(-np.sum((X - np.array([-0.6, 0.2, 0.0])) ** 2, axis=1) / 0.1),
             "3-D ellipsoid, R rising toward one edge, the optimum a peak behind the start", role="held-out"),
+    # held-out (batch 8): written after far_beta 2.5 was made the default, run once with it and without it
+    Problem("hump-2d", (-2.0, -2.0), (2.0, 2.0), (-0.9, 0.3), _ball((0.0, 0.0), 1.6),
+            lambda X: (0.4 * np.exp(-np.sum((X - np.array([-0.9, 0.3])) ** 2, axis=1) / 0.3)
+                       + np.exp(-np.sum((X - np.array([0.8, -0.7])) ** 2, axis=1) / 0.4)),
+            "2-D disc, a low hump at the start, the optimum across a valley", role="held-out"),
+    Problem("ledge-3d", (-1.0,) * 3, (1.0,) * 3, (-0.5, -0.5, 0.0),
+            lambda X: np.all(np.abs(X) < 0.85, axis=1) & (X[:, 0] + X[:, 1] < 1.0),
+            lambda X: X[:, 0] + X[:, 1] - 0.5 * X[:, 2] ** 2, "3-D cube cut by a plane, optimum on the cut",
+            role="held-out"),
+    Problem("cosine-1d", (0.0,), (6.0,), (3.0,), lambda X: (X[:, 0] > 0.5) & (X[:, 0] < 5.5),
+            lambda X: 0.5 * np.cos(2.0 * (X[:, 0] - 3.0)) + 0.2 * X[:, 0],
+            "1-D, a cosine on a slope: peaks at the start and near the far edge", role="held-out"),
+    Problem("tube-4d", (-1.0,) * 4, (1.0,) * 4, (-0.6, 0.0, 0.0, 0.0),
+            lambda X: (np.abs(X[:, 0]) < 0.9) & np.all(np.abs(X[:, 1:]) < 0.4, axis=1),
+            _sq((0.7, 0.1, 0.0, -0.1)), "4-D long box, optimum inside at its far end", role="held-out"),
 ]
 
 _GRID = {1: 20001, 2: 401, 3: 71, 4: 29}
