@@ -77,3 +77,15 @@ def test_compare_puts_two_runs_of_corl_side_by_side(suite, tmp_path, capsys):
     out = capsys.readouterr().out.splitlines()
     assert "| edge-1d | training | 1/2 → 2/2 | 1.0 → 1.0 | 0.020 → 0.010 | 11.0 → 11.0 |" in out
     assert out[-1].startswith("| all 1 |  | 1/2 → 2/2 | 1.00 → 1.00")
+
+
+@pytest.mark.parametrize("text", [None, "not json", '[{"problem": "edge-1d"}]'])
+def test_unreadable_saved_runs_get_one_line_and_exit_2(suite, tmp_path, capsys, text):
+    path = tmp_path / "runs.json"
+    if text is not None:
+        path.write_text(text)
+    with pytest.raises(SystemExit) as exc:
+        suite.main(["--table", str(path), "--verdict"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(path) in err[0] and "--json" in err[0]
