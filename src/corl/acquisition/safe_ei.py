@@ -48,10 +48,10 @@ Looking far (``far=True``). One length scale is not enough to cross a valley of 
 that (a local peak by the start, the optimum a few length scales away through safe but unexplored
 space): there g_R still extrapolates the valley. When the look beyond leaves nothing either, the
 optimizer asks once more with the ray reaching ``far_reach`` (up to 4) length scales, where g_R
-reverts to its prior, with a wider UCB, ``far_beta`` (2.5 against ``beta``'s 2: the valley's low
-returns pull g_R's prior mean and signal std down as it is explored, and with 2 the look stopped
-short of the far side; docs/safe_bo_suite.md), and a smaller margin ``far_rel * scale``, but only
-from band points that lie
+reverts to its prior, with a UCB width of its own, ``far_beta`` (2, as ``beta``; 2.5 crosses more
+valleys, whose low returns pull g_R's prior mean and signal std down as they are explored, but it
+also walks down slopes that only fall, at a cost in trials and failures: docs/safe_bo_suite.md),
+and a smaller margin ``far_rel * scale``, but only from band points that lie
 ``far_open`` (2) g_S length scales or more from every failed trial, on a ray that stays that far
 from them: a look into unexplored space, not along an edge already mapped (where R rising outward
 would otherwise pull every far look back into the known boundary). Only band points count then:
@@ -112,7 +112,7 @@ class SEIBConfig:
     far_reach: tuple[float, ...] = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0)  # looking far; () never looks far
     far_rel: float = 0.1  # looking far: R must plausibly beat R^+_mu by this fraction of the spread
     far_open: float = 2.0  # looking far: band point and ray at least far_open g_S length scales from failures
-    far_beta: float = 2.5  # looking far: UCB_R width on the ray (wider than beta: the valley pulls g_R down)
+    far_beta: float = 2.0  # looking far: UCB_R width on the ray (2.5 crosses more valleys, at a cost; see docs)
 
     def __post_init__(self) -> None:
         if not 0.0 < self.p_band <= self.p_inner < 1.0:
