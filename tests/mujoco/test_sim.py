@@ -117,6 +117,26 @@ def test_video_frames_or_skip(arm, tiny):
     assert frames.std() > 1.0  # not a blank image
 
 
+def test_a_machine_that_cannot_render_says_so_quietly():
+    # without MUJOCO_GL and without a display MuJoCo tries GLFW: it warned, Renderer raised and the
+    # half-made renderer's __del__ printed a traceback into `corl run`'s output; now only the reason
+    code = ("import gc, mujoco\n"
+            "from corl.mujoco.video import make_renderer, rendering_available\n"
+            "ok, why = rendering_available()\n"
+            "m = mujoco.MjModel.from_xml_string(\"<mujoco><worldbody><geom size='.1'/></worldbody></mujoco>\")\n"
+            "try:\n"
+            "    make_renderer(m, height=8, width=8).close(); made = True\n"
+            "except Exception as exc:\n"
+            "    made = False; assert str(exc) and type(exc).__name__ in why, (exc, why)\n"
+            "gc.collect()\n"
+            "assert made == ok\n"
+            "print(ok)\n")
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY")}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert out.returncode == 0 and out.stdout.strip() in ("True", "False"), out.stderr[-2000:]
+    assert out.stderr == ""  # no GLFWError warning, no "Exception ignored in: Renderer.__del__"
+
+
 def test_importing_the_kit_does_not_import_mujoco():
     import subprocess
     import sys

@@ -9,18 +9,22 @@ that backend's library is missing; so the kit never sets it: set it in the envir
 given rate; :func:`caption` burns a caption in; :func:`write_side_by_side` puts two trials (the
 demonstration and the learned motion) next to each other in one MP4 (GIF without ffmpeg).
 :func:`rendering_available` says whether this machine can render at all, so that a run without
-OpenGL skips its video instead of failing.
+OpenGL skips its video instead of failing; :func:`make_renderer` makes a renderer or raises, without
+the warnings and the stray traceback MuJoCo prints when it cannot.
 """
 
 from __future__ import annotations
 
+import gc
 import os
+import sys
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["Camera", "FrameRecorder", "caption", "write_side_by_side", "rendering_available"]
+__all__ = ["Camera", "FrameRecorder", "caption", "write_side_by_side", "rendering_available", "make_renderer"]
 
 
 @dataclass(frozen=True)
@@ -43,14 +47,63 @@ class Camera:
         return cam
 
 
+def _quiet_half_made_renderer(hook):
+    """An ``unraisablehook`` that drops the error of a half-made renderer's ``__del__`` only."""
+    def quiet(unraisable) -> None:
+        if getattr(unraisable.object, "__qualname__", "") != "Renderer.__del__":
+            hook(unraisable)
+    return quiet
+
+
+def make_renderer(model, *, height: int, width: int):
+    """``mujoco.Renderer(model, height, width)``, or the reason it cannot be made, quietly.
+
+    Without a display and without ``MUJOCO_GL``, MuJoCo tries GLFW: GLFW warns (``GLFWError``),
+    ``Renderer`` raises, and the half-made renderer's ``__del__`` prints a traceback when it is
+    collected. Here the warnings are kept in, the collection happens at once with only that
+    ``__del__``'s error dropped, and the original error is raised again, free of the renderer.
+    A second attempt after such a failure aborts the whole process inside MuJoCo (SIGABRT,
+    "recursive initialization"), so the first failure is remembered and raised again instead.
+    """
+    import mujoco
+
+    global _RENDER_FAILED
+    if _RENDER_FAILED is not None:
+        raise _error(*_RENDER_FAILED)
+    kind = message = None
+    hook = sys.unraisablehook
+    sys.unraisablehook = _quiet_half_made_renderer(hook)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                return mujoco.Renderer(model, height=height, width=width)
+            except Exception as exc:  # no EGL / OSMesa library, no display, or no GPU driver
+                kind, message = type(exc), str(exc)
+        gc.collect()  # the half-made renderer goes now, while its __del__'s error is dropped
+    finally:
+        sys.unraisablehook = hook
+    _RENDER_FAILED = (kind, message)
+    raise _error(kind, message)
+
+
+_RENDER_FAILED: tuple[type, str] | None = None  # (type, message) of this process's failed renderer
+
+
+def _error(kind: type, message: str) -> Exception:
+    try:
+        return kind(message)
+    except Exception:
+        return RuntimeError(f"{kind.__name__}: {message}")
+
+
 def rendering_available() -> tuple[bool, str]:
     """``(True, "")`` when an offscreen OpenGL context can be made, else ``(False, reason)``."""
     try:
         import mujoco
 
         model = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='.1'/></worldbody></mujoco>")
-        renderer = mujoco.Renderer(model, height=8, width=8)
-        renderer.close()
+        make_renderer(model, height=8, width=8).close()
     except Exception as exc:  # no EGL / OSMesa library, or no GPU driver
         return False, (f"{type(exc).__name__}: {exc}. Offscreen rendering needs EGL or OSMesa "
                        "(Debian: libegl1 libgl1); set MUJOCO_GL=egl or osmesa")
@@ -69,9 +122,7 @@ class FrameRecorder:
     """
 
     def __init__(self, model, camera: Camera, *, fps: int = 25, width: int = 480, height: int = 360) -> None:
-        import mujoco
-
-        self.renderer = mujoco.Renderer(model, height=height, width=width)
+        self.renderer = make_renderer(model, height=height, width=width)
         self.camera = camera.mjv()
         self.every = max(1, int(round(1.0 / (fps * model.opt.timestep))))
         self.frames: list[np.ndarray] = []
