@@ -15,7 +15,8 @@ rollout                         :func:`add_servos`, :class:`PDController`, :func
 forces                          :func:`add_force_sensor`, :class:`ForceSensor`,
                                 :func:`contact_force`, :func:`touching`
 video                           :class:`Camera`, :class:`FrameRecorder`, :func:`caption`,
-                                :func:`write_side_by_side`, :func:`rendering_available`
+                                :func:`write_side_by_side`, :func:`rendering_available`,
+                                :func:`make_renderer`
 ==============================  ================================================================
 
 Every module imports MuJoCo only inside the functions that need it, so ``import corl.mujoco`` is
@@ -30,7 +31,8 @@ from corl.mujoco.forces import ForceSensor, add_force_sensor, contact_force, rem
 from corl.mujoco.ik import Target, solve_ik, solve_waypoints
 from corl.mujoco.kinematics import Frame, Kinematics, rotation_error, rotation_error_jacobian, skew
 from corl.mujoco.robot import Gripper, Robot, example_robot_dir, load_spec, urdf_to_mjcf
-from corl.mujoco.video import Camera, FrameRecorder, caption, rendering_available, write_side_by_side
+from corl.mujoco.video import (Camera, FrameRecorder, caption, make_renderer, rendering_available,
+                               write_side_by_side)
 
 __all__ = [
     "Gripper", "Robot", "load_spec", "urdf_to_mjcf", "example_robot_dir",
@@ -40,5 +42,5 @@ __all__ = [
     "piecewise_linear", "fit_demonstration", "ProjectionReport", "project_demonstration",
     "add_servo", "add_servos", "dense_reference", "PDController", "track",
     "add_force_sensor", "ForceSensor", "remove_static_load", "contact_force", "touching",
-    "Camera", "FrameRecorder", "caption", "write_side_by_side", "rendering_available",
+    "Camera", "FrameRecorder", "caption", "write_side_by_side", "rendering_available", "make_renderer",
 ]
