@@ -500,7 +500,8 @@ def main(argv=None) -> None:
     ap.add_argument("--speed", action="store_true", help="also time one iteration at 100 points in 2-D")
     ap.add_argument("--json", default=None, help="write every run's numbers here")
     ap.add_argument("--table", nargs="+", default=None, metavar="JSON",
-                    help="run nothing: print the table of runs saved with --json (several files are merged)")
+                    help="run nothing: print the table of runs saved with --json (several files are merged; a "
+                         "start saved in two files counts once, from the later file)")
     ap.add_argument("--markdown", action="store_true", help="with --table: a Markdown table")
     ap.add_argument("--verdict", action="store_true",
                     help="with --table: CORL beside the best-finding and the least-failing peer on each problem, "
@@ -508,6 +509,10 @@ def main(argv=None) -> None:
     ap.add_argument("--compare", nargs=2, default=None, metavar=("BEFORE", "AFTER"),
                     help="run nothing: CORL's runs in two --json files side by side, per problem")
     args = ap.parse_args(argv)
+    if args.verdict and not args.table:
+        ap.error("--verdict reads saved runs: give them with --table FILE...")
+    if args.compare and args.table:
+        ap.error("--compare and --table are two reports: give one")
     if args.compare:
         print_compare(*args.compare, markdown=args.markdown)
         return
@@ -563,16 +568,27 @@ def main(argv=None) -> None:
 def load_runs(paths) -> dict:
     """``{(problem, method): {start: record}}`` from ``--json`` files, merged (a start saved twice: the last)."""
     runs: dict = {}
+    names = {p.name for p in PROBLEMS}
     for path in paths:
         try:
             recs = json.loads(Path(path).read_text())
+            if not isinstance(recs, list) or not recs:
+                raise ValueError("expected a non-empty list of runs")
             for rec in recs:
+                missing = [k for k in _RECORD_KEYS if k not in rec]
+                if missing:
+                    raise KeyError(f"a run without {', '.join(missing)}")
+                if rec["problem"] not in names:
+                    raise KeyError(f"unknown problem {rec['problem']!r}")
                 runs.setdefault((rec["problem"], rec["method"]), {})[rec["start"]] = rec
         except (OSError, ValueError, TypeError, KeyError) as exc:
             print(f"safe_bo_suite: cannot read runs from {path} ({type(exc).__name__}: {exc}); "
                   "give files written by --json", file=sys.stderr)
             raise SystemExit(2) from None
     return runs
+
+
+_RECORD_KEYS = ("problem", "method", "start", "found", "fail", "beyond", "trials", "ms")
 
 
 def summarize(records) -> dict:
@@ -610,7 +626,8 @@ def verdict(runs: dict, method: str = "CORL") -> list[dict]:
     ``finds``: ``method`` finds the optimum at least as often (as a rate: starts may differ) as
     the best-finding peer. ``fails_less``: it fails less often per run than every peer that finds
     the optimum at least as often as it does (a peer that rarely leaves the start fails little and
-    finds little; ``fails_less_all`` compares with every peer).
+    finds little), or None when no peer finds it as often (nothing to compare with);
+    ``fails_less_all`` compares with every peer.
     """
     out = []
     for p in PROBLEMS:
@@ -625,7 +642,7 @@ def verdict(runs: dict, method: str = "CORL") -> list[dict]:
         finders = [m for m in peers if peers[m]["rate"] >= me["rate"]]
         out.append({"problem": p.name, "set": p.role, "me": me, "peers": peers, "best": best, "fewest": fewest,
                     "finds": me["rate"] >= peers[best]["rate"],
-                    "fails_less": all(me["fail"] < peers[m]["fail"] for m in finders),
+                    "fails_less": all(me["fail"] < peers[m]["fail"] for m in finders) if finders else None,
                     "fails_less_all": all(me["fail"] < q["fail"] for q in peers.values())})
     return out
 
@@ -633,7 +650,7 @@ def verdict(runs: dict, method: str = "CORL") -> list[dict]:
 def print_verdict(paths, budget: int = 40, markdown: bool = False, method: str = "CORL") -> None:
     """CORL beside the best-finding and the least-failing peer per problem, and the counts."""
     rows = verdict(load_runs(paths), method)
-    yes = {True: "yes", False: "no"}
+    yes = {True: "yes", False: "no", None: "n/a"}
     head = ["problem", "set", f"{method} found", "failures", "beyond", "best peer at finding",
             "fewest failures among peers", "finds as often", "fails less"]
     if markdown:
@@ -648,9 +665,12 @@ def print_verdict(paths, budget: int = 40, markdown: bool = False, method: str =
                  f"{v['fewest']} {f['fail']:.1f} ({f['found']}/{f['n']} found)", yes[v["finds"]], yes[v["fails_less"]]]
         print("| " + " | ".join(cells) + " |" if markdown else "  ".join(cells))
     n = len(rows)
+    alone = sum(v["fails_less"] is None for v in rows)
     print(f"\n{method} finds the optimum at least as often as the best peer on {sum(v['finds'] for v in rows)} "
-          f"of {n} problems, and fails less often than every peer that finds it as often on "
-          f"{sum(v['fails_less'] for v in rows)} of {n} (than every peer: {sum(v['fails_less_all'] for v in rows)}).")
+          f"of {n} problems. It fails less often than every peer that finds it as often on "
+          f"{sum(v['fails_less'] is True for v in rows)} of the {n - alone} where some peer does "
+          f"(n/a: no peer finds it as often on {alone}), and than every peer on "
+          f"{sum(v['fails_less_all'] for v in rows)} of {n}.")
 
 
 def print_compare(before: str, after: str, markdown: bool = False, method: str = "CORL") -> None:

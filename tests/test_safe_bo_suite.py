@@ -53,12 +53,15 @@ def _records(problem, method, found, fail):
 def test_the_verdict_compares_rates_and_only_with_peers_that_find_as_often(suite, tmp_path, capsys):
     recs = (_records("edge-1d", "CORL", [True, True], [1, 1]) + _records("edge-1d", "A", [True, True], [3, 3])
             + _records("edge-1d", "B", [False, False], [0, 1])  # fails less, finds nothing
-            + _records("inside-2d", "CORL", [True, False], [0, 0]) + _records("inside-2d", "A", [True], [5]))
+            + _records("inside-2d", "CORL", [True, False], [0, 0]) + _records("inside-2d", "A", [True], [5])
+            + _records("ring-edge-2d", "CORL", [True], [4]) + _records("ring-edge-2d", "A", [False], [0]))
     path = tmp_path / "runs.json"
     path.write_text(json.dumps(recs))
     rows = {v["problem"]: v for v in suite.verdict(suite.load_runs([path]))}
-    assert set(rows) == {"edge-1d", "inside-2d"}
+    assert set(rows) == {"edge-1d", "inside-2d", "ring-edge-2d"}
     edge, inside = rows["edge-1d"], rows["inside-2d"]
+    assert rows["ring-edge-2d"]["fails_less"] is None  # no peer finds it as often: nothing to compare
+    assert rows["ring-edge-2d"]["finds"] and not rows["ring-edge-2d"]["fails_less_all"]
     assert edge["best"] == "A" and edge["fewest"] == "B"
     assert edge["finds"] and edge["fails_less"] and not edge["fails_less_all"]
     assert not inside["finds"]  # 1/2 against 1/1: a rate, not a count
@@ -66,7 +69,9 @@ def test_the_verdict_compares_rates_and_only_with_peers_that_find_as_often(suite
     suite.main(["--table", str(path), "--verdict", "--markdown"])
     out = capsys.readouterr().out
     assert "| edge-1d | training | 2/2 | 1.0 | 0.010 | A 2/2, 3.0 failures | B 0.5 (0/2 found) | yes | yes |" in out
-    assert "on 1 of 2 problems" in out and "as often on 2 of 2 (than every peer: 1)" in out
+    assert "| ring-edge-2d | training | 1/1 | 4.0 |" in out and out.count("| n/a |") == 1
+    assert "on 2 of 3 problems" in out and "as often on 2 of the 2 where some peer does" in out
+    assert "(n/a: no peer finds it as often on 1)" in out and "than every peer on 1 of 3" in out
 
 
 def test_compare_puts_two_runs_of_corl_side_by_side(suite, tmp_path, capsys):
@@ -79,7 +84,9 @@ def test_compare_puts_two_runs_of_corl_side_by_side(suite, tmp_path, capsys):
     assert out[-1].startswith("| all 1 |  | 1/2 → 2/2 | 1.00 → 1.00")
 
 
-@pytest.mark.parametrize("text", [None, "not json", '[{"problem": "edge-1d"}]'])
+@pytest.mark.parametrize("text", [None, "not json", "[]", "{}", '[{"problem": "edge-1d"}]',
+                                  json.dumps([{k: 1 for k in ("method", "start", "found", "fail", "beyond",
+                                                              "trials", "ms")} | {"problem": "no-such-1d"}])])
 def test_unreadable_saved_runs_get_one_line_and_exit_2(suite, tmp_path, capsys, text):
     path = tmp_path / "runs.json"
     if text is not None:
@@ -89,3 +96,11 @@ def test_unreadable_saved_runs_get_one_line_and_exit_2(suite, tmp_path, capsys, 
     assert exc.value.code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(path) in err[0] and "--json" in err[0]
+
+
+def test_report_flags_that_cannot_work_together_are_refused(suite, capsys):
+    for args in (["--verdict"], ["--compare", "a.json", "b.json", "--table", "c.json"]):
+        with pytest.raises(SystemExit) as exc:
+            suite.main(args)
+        assert exc.value.code == 2
+    assert "--verdict reads saved runs" in capsys.readouterr().err

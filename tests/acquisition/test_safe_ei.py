@@ -184,8 +184,11 @@ def test_far_settings_are_checked():
         SEIBConfig(far_reach=(-1.0,))
     with pytest.raises(InputError, match="far_open"):
         SEIBConfig(far_open=-1.0)
-    with pytest.raises(InputError, match="far_beta"):
-        SEIBConfig(far_beta=-0.5)
+    for bad in (-0.5, float("nan"), float("inf")):  # NaN switched the far look off without a word
+        with pytest.raises(InputError, match="far_beta"):
+            SEIBConfig(far_beta=bad)
+    with pytest.raises(InputError, match="beta"):
+        SEIBConfig(beta=float("nan"))
     assert SEIBConfig(far_reach=()).far_reach == ()  # never look far
 
 

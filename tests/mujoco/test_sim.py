@@ -122,8 +122,13 @@ def test_a_machine_that_cannot_render_says_so_quietly():
     # half-made renderer's __del__ printed a traceback into `corl run`'s output; now only the reason
     code = ("import gc, mujoco\n"
             "from corl.mujoco.video import make_renderer, rendering_available\n"
-            "ok, why = rendering_available()\n"
             "m = mujoco.MjModel.from_xml_string(\"<mujoco><worldbody><geom size='.1'/></worldbody></mujoco>\")\n"
+            "try:\n"  # too large for the offscreen buffer: refused, and not remembered as 'cannot render'
+            "    make_renderer(m, height=8, width=100000)\n"
+            "except ValueError as exc:\n"
+            "    assert 'offscreen buffer' in str(exc), exc\n"
+            "ok, why = rendering_available()\n"
+            "assert ok or not why.startswith('ValueError'), why\n"
             "try:\n"
             "    make_renderer(m, height=8, width=8).close(); made = True\n"
             "except Exception as exc:\n"

@@ -117,10 +117,13 @@ class SEIBConfig:
     def __post_init__(self) -> None:
         if not 0.0 < self.p_band <= self.p_inner < 1.0:
             raise InputError(f"SEIB needs 0 < p_band <= p_inner < 1, got {self.p_band}, {self.p_inner}")
-        if min(self.xi_rel, self.beta, self.boundary_weight, self.stop_value, self.trust_per_dim,
-               self.beyond_rel, self.ray_open, self.far_rel, self.far_open, self.far_beta) < 0:
+        values = (self.xi_rel, self.beta, self.boundary_weight, self.stop_value, self.trust_per_dim,
+                  self.beyond_rel, self.ray_open, self.far_rel, self.far_open, self.far_beta)
+        if any(np.isnan(v) for v in values) or min(values) < 0:
             raise InputError("xi_rel, beta, boundary_weight, stop_value, trust_per_dim, beyond_rel, ray_open, far_rel, "
                              "far_open and far_beta must be >= 0 (beyond_rel=inf never looks beyond the band)")
+        if not (np.isfinite(self.beta) and np.isfinite(self.far_beta)):
+            raise InputError(f"beta and far_beta (UCB widths) must be finite, got {self.beta}, {self.far_beta}")
         if len(self.reach) == 0 or min(self.reach) < 0:
             raise InputError(f"reach needs at least one distance, all >= 0, got {self.reach}")
         if self.far_reach and min(self.far_reach) < 0:

@@ -63,11 +63,17 @@ def make_renderer(model, *, height: int, width: int):
     collected. Here the warnings are kept in, the collection happens at once with only that
     ``__del__``'s error dropped, and the original error is raised again, free of the renderer.
     A second attempt after such a failure aborts the whole process inside MuJoCo (SIGABRT,
-    "recursive initialization"), so the first failure is remembered and raised again instead.
+    "recursive initialization"), so the first failure is remembered and raised again instead. A
+    size larger than the model's offscreen buffer is refused first, and never remembered.
     """
     import mujoco
 
     global _RENDER_FAILED
+    width_max, height_max = int(model.vis.global_.offwidth), int(model.vis.global_.offheight)
+    if not (0 < int(width) <= width_max and 0 < int(height) <= height_max):
+        raise ValueError(f"a {width}x{height} image does not fit this model's offscreen buffer "
+                         f"({width_max}x{height_max}); render smaller or raise <visual><global "
+                         "offwidth=... offheight=...> in the model")
     if _RENDER_FAILED is not None:
         raise _error(*_RENDER_FAILED)
     kind = message = None
@@ -83,7 +89,8 @@ def make_renderer(model, *, height: int, width: int):
         gc.collect()  # the half-made renderer goes now, while its __del__'s error is dropped
     finally:
         sys.unraisablehook = hook
-    _RENDER_FAILED = (kind, message)
+    if not issubclass(kind, (ValueError, TypeError)):  # an argument error never made an OpenGL context
+        _RENDER_FAILED = (kind, message)
     raise _error(kind, message)
 
 
