@@ -178,9 +178,13 @@ class SEIB:
         if self.regression is None:
             ei, gate = np.zeros(len(X)), np.ones(len(X), dtype=bool)
         else:
-            mu, var = self.regression.predict(X)
-            ei = expected_improvement(mu, var, self.best_return + xi) / self.scale  # EI with margin xi
-            gate = np.ones(len(X), dtype=bool)
+            # g_R only where a point can be proposed (p >= p_band): elsewhere ei = 0 and the gate is
+            # shut, and the value is 0 whatever they are (the maximiser's grid is mostly there)
+            need = np.flatnonzero(inner | band)
+            ei, gate = np.zeros(len(X)), np.zeros(len(X), dtype=bool)
+            mu, var = self.regression.predict(X[need]) if need.size else (np.zeros(0), np.zeros(0))
+            ei[need] = expected_improvement(mu, var, self.best_return + xi) / self.scale  # EI with margin xi
+            gate[need] = True
             if self.gated and self.beyond:  # UCB_R on the ray beyond the band point
                 rel = cfg.far_rel if self.far else cfg.beyond_rel
                 excess = self.reach_ucb(X, band) - (self.incumbent + rel * self.scale)
@@ -188,7 +192,7 @@ class SEIB:
                 if self.far:  # toward the largest promise, not around the whole frontier
                     boundary = boundary * np.where(gate, excess, 0.0) / self.scale
             elif self.gated:  # UCB_R at the band point
-                gate = mu + cfg.beta * np.sqrt(var) > self.best_return + xi
+                gate[need] = mu + cfg.beta * np.sqrt(var) > self.best_return + xi
         edge = np.where(band & gate, np.maximum(ei, cfg.boundary_weight * boundary), 0.0)
         far = self.gated and self.beyond and self.far  # looking far asks the band only: the inner EI
         value = edge if far else np.where(inner, ei, 0.0) + edge  # had its turn and left nothing new
