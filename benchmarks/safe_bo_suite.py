@@ -565,9 +565,7 @@ def main(argv=None) -> None:
             rows.append((p, name, runs, float(np.mean(ms))))
             print(_row(p, name, runs, float(np.mean(ms))), flush=True)
     print()
-    print(f"Safe BO suite: {args.budget} trials, start told first; found = within 2 % of the return range")
-    print(f"{'problem':<14} {'set':<9} {'method':<13} {'found':>7} {'fail':>6} {'beyond':>7} {'trials':>7} {'ms/it':>8}")
-    print("-" * 78)
+    print(_table_title(args.budget))
     for p, name, runs, ms in rows:
         print(_row(p, name, runs, ms))
     if args.speed:
@@ -614,18 +612,26 @@ def summarize(records) -> dict:
             "beyond": float(max(r["beyond"] for r in recs)), "trials": float(np.mean([r["trials"] for r in recs]))}
 
 
+def _print_head(head: list[str], markdown: bool, title: str) -> None:
+    """A report's header: a Markdown table head, or the plain-text title."""
+    if markdown:
+        print("| " + " | ".join(head) + " |")
+        print("|" + "---|" * len(head))
+    else:
+        print(title)
+
+
+def _print_cells(cells: list[str], markdown: bool) -> None:
+    print("| " + " | ".join(cells) + " |" if markdown else "  ".join(c for c in cells if c))
+
+
 def print_table(paths, budget: int = 40, markdown: bool = False) -> None:
     """The table of saved runs (``--json`` files, merged; a start saved twice counts once, the last)."""
     runs = load_runs(paths)
     order = {p.name: k for k, p in enumerate(PROBLEMS)}
     by_name = {p.name: p for p in PROBLEMS}
-    if markdown:
-        print("| problem | set | method | found | failures | beyond | trials | ms/it |")
-        print("|---|---|---|---|---|---|---|---|")
-    else:
-        print(f"Safe BO suite: {budget} trials, start told first; found = within 2 % of the return range")
-        print(f"{'problem':<14} {'set':<9} {'method':<13} {'found':>7} {'fail':>6} {'beyond':>7} {'trials':>7} {'ms/it':>8}")
-        print("-" * 78)
+    _print_head(["problem", "set", "method", "found", "failures", "beyond", "trials", "ms/it"], markdown,
+                _table_title(budget))
     methods = ["CORL", "PIBU", "PIBU(l=w/10)", "BoTorch", "SafeOpt"]
     rank = {m: k for k, m in enumerate(methods)}
     for prob, name in sorted(runs, key=lambda k: (order.get(k[0], len(order)), rank.get(k[1], len(rank)), k[1])):
@@ -667,17 +673,14 @@ def print_verdict(paths, budget: int = 40, markdown: bool = False, method: str =
     yes = {True: "yes", False: "no", None: "n/a"}
     head = ["problem", "set", f"{method} found", "failures", "beyond", "best peer at finding",
             "fewest failures among peers", "finds as often", "fails less"]
-    if markdown:
-        print("| " + " | ".join(head) + " |")
-        print("|" + "---|" * len(head))
-    else:
-        print(f"Safe BO suite, {budget} trials: {method} beside the peers (found = within 2 % of the return range)")
+    _print_head(head, markdown, f"Safe BO suite, {budget} trials: {method} beside the peers "
+                "(found = within 2 % of the return range)")
     for v in rows:
         me, b, f = v["me"], v["peers"][v["best"]], v["peers"][v["fewest"]]
         cells = [v["problem"], v["set"], f"{me['found']}/{me['n']}", f"{me['fail']:.1f}", f"{me['beyond']:.3f}",
                  f"{v['best']} {b['found']}/{b['n']}, {b['fail']:.1f} failures",
                  f"{v['fewest']} {f['fail']:.1f} ({f['found']}/{f['n']} found)", yes[v["finds"]], yes[v["fails_less"]]]
-        print("| " + " | ".join(cells) + " |" if markdown else "  ".join(cells))
+        _print_cells(cells, markdown)
     n = len(rows)
     alone = sum(v["fails_less"] is None for v in rows)
     print(f"\n{method} finds the optimum at least as often as the best peer on {sum(v['finds'] for v in rows)} "
@@ -690,12 +693,7 @@ def print_verdict(paths, budget: int = 40, markdown: bool = False, method: str =
 def print_compare(before: str, after: str, markdown: bool = False, method: str = "CORL") -> None:
     """``method``'s runs in two ``--json`` files per problem: found, failures, beyond, trials, before -> after."""
     a, b = load_runs([before]), load_runs([after])
-    head = ["problem", "set", "found", "failures", "beyond", "trials"]
-    if markdown:
-        print("| " + " | ".join(head) + " |")
-        print("|" + "---|" * len(head))
-    else:
-        print(f"{method}: {before} -> {after}")
+    _print_head(["problem", "set", "found", "failures", "beyond", "trials"], markdown, f"{method}: {before} -> {after}")
     tot = {"found": [0, 0], "n": [0, 0], "fail": [[], []]}
     for p in PROBLEMS:
         if (p.name, method) not in a or (p.name, method) not in b:
@@ -703,7 +701,7 @@ def print_compare(before: str, after: str, markdown: bool = False, method: str =
         x, y = summarize(a[(p.name, method)].values()), summarize(b[(p.name, method)].values())
         cells = [p.name, p.role, f"{x['found']}/{x['n']} → {y['found']}/{y['n']}", f"{x['fail']:.1f} → {y['fail']:.1f}",
                  f"{x['beyond']:.3f} → {y['beyond']:.3f}", f"{x['trials']:.1f} → {y['trials']:.1f}"]
-        print("| " + " | ".join(cells) + " |" if markdown else "  ".join(cells))
+        _print_cells(cells, markdown)
         for k, s in enumerate((x, y)):
             tot["found"][k] += s["found"]
             tot["n"][k] += s["n"]
@@ -711,16 +709,20 @@ def print_compare(before: str, after: str, markdown: bool = False, method: str =
     if tot["fail"][0]:
         cells = [f"all {len(tot['fail'][0])}", "", f"{tot['found'][0]}/{tot['n'][0]} → {tot['found'][1]}/{tot['n'][1]}",
                  f"{np.mean(tot['fail'][0]):.2f} → {np.mean(tot['fail'][1]):.2f} (mean per problem)", "", ""]
-        print("| " + " | ".join(cells) + " |" if markdown else "  ".join(c for c in cells if c))
+        _print_cells(cells, markdown)
+
+
+def _table_title(budget: int) -> str:
+    """The plain-text table's title and column heads (rows: :func:`_row`)."""
+    return (f"Safe BO suite: {budget} trials, start told first; found = within 2 % of the return range\n"
+            f"{'problem':<14} {'set':<9} {'method':<13} {'found':>7} {'fail':>6} {'beyond':>7} {'trials':>7} "
+            f"{'ms/it':>8}\n" + "-" * 78)
 
 
 def _row(p, name, runs, ms) -> str:
-    found = sum(r["found"] for r in runs)
-    fail = np.mean([r["fail"] for r in runs])
-    beyond = max(r["beyond"] for r in runs)
-    trials = np.mean([r["trials"] for r in runs])
-    tag = p.role
-    return f"{p.name:<14} {tag:<9} {name:<13} {found:>3}/{len(runs):<3} {fail:>6.1f} {beyond:>7.3f} {trials:>7.1f} {ms:>8.1f}"
+    s = summarize(runs)
+    return (f"{p.name:<14} {p.role:<9} {name:<13} {s['found']:>3}/{s['n']:<3} {s['fail']:>6.1f} {s['beyond']:>7.3f} "
+            f"{s['trials']:>7.1f} {ms:>8.1f}")
 
 
 if __name__ == "__main__":

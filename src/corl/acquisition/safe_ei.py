@@ -182,7 +182,7 @@ class SEIB:
             # shut, and the value is 0 whatever they are (the maximiser's grid is mostly there)
             need = np.flatnonzero(inner | band)
             ei, gate = np.zeros(len(X)), np.zeros(len(X), dtype=bool)
-            mu, var = self.regression.predict(X[need]) if need.size else (np.zeros(0), np.zeros(0))
+            mu, var = self.regression.predict(X[need])
             ei[need] = expected_improvement(mu, var, self.best_return + xi) / self.scale  # EI with margin xi
             gate[need] = True
             if self.gated and self.beyond:  # UCB_R on the ray beyond the band point
