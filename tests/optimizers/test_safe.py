@@ -138,6 +138,43 @@ def test_looks_far_across_a_valley_wider_than_a_length_scale():
     assert np.sum(~far.success_) <= 2 and far.n_evals < 40  # with few failures, and still stops
 
 
+def _wide_valley_rollout(theta):  # safe on (1, 9), a local peak at 2.8 by the start, the optimum at 8.5
+    x = float(np.asarray(theta).reshape(-1)[0])
+    if not 1.0 < x < 9.0:
+        return Outcome(False, None)
+    return Outcome(True, 0.7 * np.exp(-((x - 2.8) ** 2) / 0.5) + np.exp(-((x - 8.5) ** 2) / 0.8))
+
+
+def test_far_ladder_looks_again_only_where_corl_would_stop():
+    from corl.acquisition.safe_ei import SEIBConfig
+    from corl.problem import Bounds
+
+    bounds = Bounds(np.array([0.0]), np.array([10.0]))
+    runs = {}
+    for name, seib in [("default", SEIBConfig()), ("ladder", SEIBConfig(far_ladder=(3.0,)))]:
+        opt = SafeBOOptimizer(bounds, seib=seib, max_evals=40, seed=0)
+        opt.tell(np.array([2.5]), _wide_valley_rollout(np.array([2.5])))
+        _loop(opt, _wide_valley_rollout, 39)
+        runs[name] = opt
+    default, ladder = runs["default"], runs["ladder"]
+    # far_beta 2 sees no gain 4 length scales out: CORL stops at the local peak
+    assert default.best[1] < 0.71 and default.stop_reason is StopReason.NO_IMPROVEMENT
+    n = default.n_evals
+    np.testing.assert_array_equal(ladder.X_[:n], default.X_[:n])  # the same run up to where it stopped ...
+    assert abs(ladder.best[0][0] - 8.5) < 0.1 and ladder.best[1] > 0.99  # ... then across the valley
+    assert np.sum(~ladder.success_) <= 2 and ladder.n_evals < 40  # with few failures, and it still stops
+    assert ladder.stop_reason in (StopReason.NO_IMPROVEMENT, StopReason.CONVERGED)
+
+
+def test_far_ladder_settings_are_checked():
+    from corl.acquisition.safe_ei import SEIBConfig
+
+    for bad in ((-1.0,), (float("nan"),), (3.0, float("inf"))):
+        with pytest.raises(InputError, match="far_ladder"):
+            SEIBConfig(far_ladder=bad)
+    assert SEIBConfig().far_ladder == ()  # the default stops at once
+
+
 def test_a_user_sets_corl_s_acquisition_through_the_public_settings():
     from dataclasses import replace
 

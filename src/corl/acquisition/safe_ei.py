@@ -113,6 +113,7 @@ class SEIBConfig:
     far_rel: float = 0.1  # looking far: R must plausibly beat R^+_mu by this fraction of the spread
     far_open: float = 2.0  # looking far: band point and ray at least far_open g_S length scales from failures
     far_beta: float = 2.0  # looking far: UCB_R width on the ray (2.5 crosses more valleys, at a cost; see docs)
+    far_ladder: tuple[float, ...] = ()  # before stopping: look far again with each of these UCB widths in turn
 
     def __post_init__(self) -> None:
         if not 0.0 < self.p_band <= self.p_inner < 1.0:
@@ -126,6 +127,8 @@ class SEIBConfig:
             raise InputError(f"beta and far_beta (UCB widths) must be finite, got {self.beta}, {self.far_beta}")
         if len(self.reach) == 0 or min(self.reach) < 0:
             raise InputError(f"reach needs at least one distance, all >= 0, got {self.reach}")
+        if any(not (np.isfinite(b) and b >= 0) for b in self.far_ladder):
+            raise InputError(f"far_ladder needs finite UCB widths >= 0 (or none: stop at once), got {self.far_ladder}")
         if self.far_reach and min(self.far_reach) < 0:
             raise InputError(f"far_reach needs distances >= 0 (or none: never look far), got {self.far_reach}")
 

@@ -13,6 +13,7 @@ and, with few successes, with the gate open. It needs one known success
 
 from __future__ import annotations
 
+from dataclasses import replace
 
 import numpy as np
 
@@ -72,6 +73,10 @@ class SafeBOOptimizer(_BayesOpt):
         few = np.sum(self.success_) < self.seib.trust_per_dim * self.bounds.dim
         if few and not value >= self.seib.stop_value:  # too few successes to trust the gate: open it
             x, value = self._maximize(gated=False)
+        for width in self.seib.far_ladder:  # about to stop: may R be higher far out at a wider UCB?
+            if not self._stops(x, value):
+                break
+            x, value = self._maximize(beyond=True, far=True, far_beta=width)
         if not value >= self.seib.stop_value:
             return StopReason.NO_IMPROVEMENT  # nothing both plausible and safe is left, and no uncertain boundary
         if _stop(self.config.stop_rule, x, self.X_, self.config.stop_distance, self._scale):
@@ -88,7 +93,8 @@ class SafeBOOptimizer(_BayesOpt):
         return not value >= self.seib.stop_value or _stop(self.config.stop_rule, x, self.X_,
                                                           self.config.stop_distance, self._scale)
 
-    def _acquisition(self, *, beyond: bool = False, far: bool = False, gated: bool = True) -> SEIB:
+    def _acquisition(self, *, beyond: bool = False, far: bool = False, gated: bool = True,
+                     far_beta: float | None = None) -> SEIB:
         ok = self.success_ & np.isfinite(self.returns_)
         if self._models is None or self._models[0] != len(self.X_):  # fitted once per ask
             classifier = self.models.classifier(self.X_, self.success_)
@@ -96,5 +102,6 @@ class SafeBOOptimizer(_BayesOpt):
             self._models = (len(self.X_), regression, classifier)
         regression, classifier = self._models[1:]
         best = float(np.max(self.returns_[ok]))
-        return SEIB(regression, classifier, best, return_scale(self.returns_[ok]), self.seib, gated=gated,
+        seib = self.seib if far_beta is None else replace(self.seib, far_beta=far_beta)
+        return SEIB(regression, classifier, best, return_scale(self.returns_[ok]), seib, gated=gated,
                     beyond=beyond, far=far, box=(self.bounds.lower, self.bounds.upper))
