@@ -179,6 +179,24 @@ def test_looking_far_starts_only_from_band_points_clear_of_failures():
     # while the left ray still ends at the failure just past the band
 
 
+def test_a_failure_behind_the_band_point_does_not_block_its_far_ray():
+    """1-D: one failure at 0.44, just left of three successes; the right band lies within
+    ``far_open`` g_S length scales of it, but on the far side of the safe interval."""
+    X = np.array([0.5, 0.53, 0.56, 0.44])[:, None]
+    s = np.array([True, True, True, False])
+    r = np.array([1.0, 0.9, 0.8])  # falling to the right: only the far look may open the right band
+    clf = GPClassifier(SquaredExponential(0.1, 10.0), prior_mean=-7.0).fit(X, s)
+    reg = GPRegression(SquaredExponential(0.05, 1.0), 0.01, prior_mean=0.0).fit(X[s], r)
+    grid = np.linspace(0, 1, 2001)[:, None]
+    right = grid[:, 0] > 0.56
+    for cfg, opens in [(SEIBConfig(), True), (SEIBConfig(far_behind=1.0), False)]:
+        parts = SEIB(reg, clf, 1.0, float(np.std(r)), cfg, beyond=True, far=True, box=([0.0], [1.0])).parts(grid)
+        band = parts["band"]
+        assert np.any(band & right) and np.min(np.abs(grid[band & right, 0] - 0.44)) < 2 * 0.1  # within far_open
+        assert bool(np.any(parts["ucb_gate"] & right)) is opens  # far_behind=1: every failure blocks (the old rule)
+        assert not np.any(parts["ucb_gate"] & ~right)  # the failure stays ahead of the left band: closed
+
+
 def test_far_settings_are_checked():
     with pytest.raises(InputError, match="far_reach"):
         SEIBConfig(far_reach=(-1.0,))
@@ -190,6 +208,9 @@ def test_far_settings_are_checked():
     with pytest.raises(InputError, match="beta"):
         SEIBConfig(beta=float("nan"))
     assert SEIBConfig(far_reach=()).far_reach == ()  # never look far
+    for bad in (-1.5, 1.01, float("nan")):
+        with pytest.raises(InputError, match="far_behind"):
+            SEIBConfig(far_behind=bad)
 
 
 def test_looking_far_heads_where_the_return_may_be_highest():

@@ -54,7 +54,13 @@ also walks down slopes that only fall, at a cost in trials and failures: docs/sa
 and a smaller margin ``far_rel * scale``, but only from band points that lie
 ``far_open`` (2) g_S length scales or more from every failed trial, on a ray that stays that far
 from them: a look into unexplored space, not along an edge already mapped (where R rising outward
-would otherwise pull every far look back into the known boundary). Only band points count then:
+would otherwise pull every far look back into the known boundary). A failure well behind the band
+point does not count (cosine with the outward normal below ``-far_behind``, 0.25, in g_S's
+length-scale units): a failure at the other end of a narrow safe set says nothing about the side
+the ray explores (in 1-D it closed the far look on the open side: bumps-1d stopped at a local
+peak after 8 trials). When even the far look has nothing, the optimizer may look far again with
+the wider UCB widths of ``far_ladder`` in turn (none by default): a run is unchanged up to where
+it would stop, and then spends more of its budget (docs/safe_bo_suite.md). Only band points count then:
 the inner EI had its turn in the first ask, and its maximum beside the best point would otherwise
 stop the search there (the maximiser lands on a sampled point). Looking far, the boundary term
 is weighted by the promise, ``w_b * V * (max_k UCB_R - R^+_mu - far_rel * scale) / scale``: the
@@ -113,6 +119,7 @@ class SEIBConfig:
     far_rel: float = 0.1  # looking far: R must plausibly beat R^+_mu by this fraction of the spread
     far_open: float = 2.0  # looking far: band point and ray at least far_open g_S length scales from failures
     far_beta: float = 2.0  # looking far: UCB_R width on the ray (2.5 crosses more valleys, at a cost; see docs)
+    far_behind: float = 0.25  # looking far: a failure at cos < -far_behind to the outward normal does not block (1: all do)
     far_ladder: tuple[float, ...] = ()  # before stopping: look far again with each of these UCB widths in turn
 
     def __post_init__(self) -> None:
@@ -127,6 +134,8 @@ class SEIBConfig:
             raise InputError(f"beta and far_beta (UCB widths) must be finite, got {self.beta}, {self.far_beta}")
         if len(self.reach) == 0 or min(self.reach) < 0:
             raise InputError(f"reach needs at least one distance, all >= 0, got {self.reach}")
+        if not -1.0 <= self.far_behind <= 1.0:  # NaN fails too
+            raise InputError(f"far_behind is a cosine, in [-1, 1] (1: every failure blocks), got {self.far_behind}")
         if any(not (np.isfinite(b) and b >= 0) for b in self.far_ladder):
             raise InputError(f"far_ladder needs finite UCB widths >= 0 (or none: stop at once), got {self.far_ladder}")
         if self.far_reach and min(self.far_reach) < 0:
@@ -225,8 +234,9 @@ class SEIB:
         scales along it, ``l = min(l_R, l_S)`` per dimension (``|step / l| = d_k``, ARD). The ray
         ends at its first point within ``ray_open`` g_S length scales of a failed trial and at the
         box; the band point itself (``d = 0``) always counts. Looking far (``far``): ``far_reach``,
-        ``far_open`` and ``far_beta`` instead, and the band point counts only if it is that far from
-        failures.
+        ``far_open`` and ``far_beta`` instead, the band point counts only if it is that far from
+        failures, and failures behind it (cosine to ``n`` below ``-far_behind``, measured in g_S
+        length scales) do not count.
         """
         X = np.asarray(X, dtype=float)
         out = np.full(len(X), -np.inf)
@@ -250,8 +260,15 @@ class SEIB:
         failed = self.classifier.X_[self.classifier.y_ < 0]
         if len(failed):  # known to fail: within ray_open g_S length scales of a failed trial
             ls_s = np.broadcast_to(np.asarray(self.classifier.kernel.lengthscales, dtype=float), (m,))
-            d2 = np.min(np.sum(((pts[:, None, :] - failed[None]) / ls_s) ** 2, axis=2), axis=1)
-            open_ = (d2 >= radius ** 2).reshape(ucb.shape)
+            d2 = np.sum(((pts[:, None, :] - failed[None]) / ls_s) ** 2, axis=2)  # (len(reach) * s, f)
+            if self.far:  # a failure well behind the band point (on the far side of the safe set) does not block
+                u = (failed[None] - Xb[:, None, :]) / ls_s  # (s, f, m), in g_S length scales
+                nu = n * ls_s  # the outward normal in the same scaled space
+                cos = np.einsum("sfm,sm->sf", u, nu) / np.maximum(
+                    np.linalg.norm(u, axis=2) * np.linalg.norm(nu, axis=1)[:, None], 1e-300)
+                behind = (cos < -self.config.far_behind) & (np.linalg.norm(nu, axis=1)[:, None] > 0)
+                d2 = np.where(np.tile(behind, (len(reach), 1)), np.inf, d2)
+            open_ = (np.min(d2, axis=1) >= radius ** 2).reshape(ucb.shape)
         if self.box is not None:
             lo, hi = self.box
             open_ &= np.all((pts >= lo) & (pts <= hi), axis=1).reshape(ucb.shape)
