@@ -213,3 +213,29 @@ def test_a_wrong_seib_setting_is_refused_where_it_is_made():
         replace(fitted, seib="far")
     with pytest.raises(InputError, match="MethodSettings.seib must be a corl.SEIBConfig, got dict"):
         replace(USER_SETTINGS, seib={"far_reach": ()})
+
+
+def test_a_decision_reuses_predictions_at_the_same_candidates():
+    """Asking SEIB again in one decision (beyond, far) reuses g_S's posterior on the same lattice."""
+    from corl.optimizers.safe import _Reuse
+
+    class Counting:
+        calls = 0
+        kernel = "k"
+
+        def predict_latent(self, X):
+            Counting.calls += 1
+            return X[:, 0] * 2.0, X[:, 0] ** 2
+
+    model = _Reuse(Counting())
+    X = np.random.default_rng(0).random((50, 2))
+    first = model.predict_latent(X)
+    again = model.predict_latent(X.copy())  # equal values, another array
+    other = model.predict_latent(X + 1e-12)  # any difference: computed
+    assert Counting.calls == 2 and again is first and not np.array_equal(other[0], first[0])
+    assert model.kernel == "k"  # everything else is the model's
+    opt = SafeBOOptimizer(UNIT2, max_evals=30, seed=0)
+    rollout = quadratic(C2, fail_above=0.8)
+    opt.tell(np.array([0.6, 0.2]), rollout(np.array([0.6, 0.2])))
+    _loop(opt, rollout, 5)
+    assert isinstance(opt._models[1], _Reuse) and isinstance(opt._models[2], _Reuse)

@@ -40,6 +40,37 @@ def return_scale(returns: np.ndarray) -> float:
     return top if top > 0 else 1.0
 
 
+class _Reuse:
+    """A fitted GP whose predictions at the same inputs are computed once.
+
+    One decision asks SEIB up to five times (band, beyond, far, ungated, the ladder) on the same
+    fitted models, and the maximiser starts each time from the same candidates (the 2-D lattice
+    and the data): g_S's and g_R's posteriors there are reused, so a decision that ends in a stop
+    costs little more than one that proposes. Results are the very arrays computed the first time.
+    """
+
+    def __init__(self, model, keep: int = 4) -> None:
+        self._model, self._keep, self._seen = model, keep, []
+
+    def __getattr__(self, name):  # kernel, X_, y_, ... of the model
+        return getattr(self._model, name)
+
+    def _once(self, method: str, X):
+        X = np.asarray(X, dtype=float)
+        for key, X_seen, out in self._seen:
+            if key == method and X_seen.shape == X.shape and np.array_equal(X_seen, X):
+                return out
+        out = getattr(self._model, method)(X)
+        self._seen = ([(method, X.copy(), out)] + self._seen)[: self._keep]
+        return out
+
+    def predict(self, X):
+        return self._once("predict", X)
+
+    def predict_latent(self, X):
+        return self._once("predict_latent", X)
+
+
 class SafeBOOptimizer(_BayesOpt):
     """Safe Bayesian optimization with SEIB (the ``CORL`` method's black-box step).
 
@@ -97,9 +128,9 @@ class SafeBOOptimizer(_BayesOpt):
                      far_beta: float | None = None) -> SEIB:
         ok = self.success_ & np.isfinite(self.returns_)
         if self._models is None or self._models[0] != len(self.X_):  # fitted once per ask
-            classifier = self.models.classifier(self.X_, self.success_)
+            classifier = _Reuse(self.models.classifier(self.X_, self.success_))
             regression = self.models.regression(self.X_[ok], self.returns_[ok])
-            self._models = (len(self.X_), regression, classifier)
+            self._models = (len(self.X_), None if regression is None else _Reuse(regression), classifier)
         regression, classifier = self._models[1:]
         best = float(np.max(self.returns_[ok]))
         seib = self.seib if far_beta is None else replace(self.seib, far_beta=far_beta)
