@@ -258,3 +258,19 @@ def test_far_beta_is_the_ucb_width_on_the_far_ray_and_only_there(far_beta):
     near = SEIB(reg, clf, 1.0, scale, cfg, beyond=True, box=([0.0], [1.0])).reach_ucb(X)
     plain = SEIB(reg, clf, 1.0, scale, beyond=True, box=([0.0], [1.0])).reach_ucb(X)
     np.testing.assert_array_equal(near, plain)
+
+
+@pytest.mark.parametrize("p_band", [0.55, 0.45])
+def test_values_are_the_parts_values_when_only_positive_latent_means_are_worked_out(p_band):
+    """``SEIB(X)`` skips g_S's variance where its latent mean is <= 0 (p <= 1/2 < p_band there)."""
+    reg, clf, scale = _valley_models(fail_left=True)
+    grid = np.linspace(0, 1, 4001)[:, None]
+    g = clf.predict_latent(grid)[0]
+    assert np.any(g <= 0) and np.any(g > 0)
+    positive = 0
+    for kw in ({}, {"beyond": True}, {"beyond": True, "far": True}, {"gated": False}):
+        acq = SEIB(reg, clf, 1.0, scale, SEIBConfig(p_band=p_band, p_inner=0.7), box=([0.0], [1.0]), **kw)
+        parts = acq.parts(grid)
+        positive += int(np.any(parts["value"] > 0))
+        np.testing.assert_allclose(acq(grid), parts["value"], rtol=1e-9, atol=1e-12)
+    assert positive >= 2  # the comparison is not between zeros only

@@ -184,3 +184,21 @@ def test_warm_start_reaches_the_same_mode_with_fewer_steps():
     cold = GPClassifier(SquaredExponential(0.4, 10.0), prior_mean=-7.0, warm_start=False).fit(X, s)
     np.testing.assert_allclose(gp.f_hat_, cold.f_hat_, atol=1e-5)
     assert gp.n_iter_ < cold.n_iter_
+
+
+def test_latent_posterior_only_where_the_mean_is_positive_is_predict_latent_s():
+    rng = np.random.default_rng(3)
+    X = rng.uniform(-2, 2, size=(40, 2))
+    y = np.linalg.norm(X, axis=1) < 1.2
+    gp = GPClassifier(SquaredExponential([0.5, 0.7], 4.0), prior_mean=-3.0).fit(X, y)
+    Xs = rng.uniform(-3, 3, size=(5000, 2))  # more than one block
+    mean, var = gp.predict_latent_positive(Xs)
+    full_mean, full_var = gp.predict_latent(Xs)
+    pos = full_mean > 0
+    assert 0 < np.sum(pos) < len(Xs) // 2
+    np.testing.assert_allclose(mean, full_mean, rtol=1e-12, atol=1e-12 * np.max(np.abs(full_mean)))
+    np.testing.assert_allclose(var[pos], full_var[pos], rtol=1e-9, atol=1e-12 * float(gp.kernel.signal_std) ** 2)
+    assert np.all(np.isnan(var[~pos]))  # not worked out: never read as a variance
+    empty = GPClassifier(SquaredExponential(0.5, 4.0), prior_mean=-3.0).fit(np.zeros((0, 2)), np.zeros(0, bool))
+    m0, v0 = empty.predict_latent_positive(Xs[:3])
+    assert np.all(m0 == -3.0) and np.all(np.isnan(v0))

@@ -92,6 +92,7 @@ from corl.numerics import floor_variance
 __all__ = ["SEIBConfig", "SEIB", "expected_improvement"]
 
 _INV_SQRT_2PI = 1.0 / np.sqrt(2.0 * np.pi)
+_HALF_AND_MARGIN = 0.5 + 1e-6  # p_band above this: p >= p_band needs a positive latent mean, beyond rounding
 
 
 def expected_improvement(mu, var, threshold: float) -> np.ndarray:
@@ -178,10 +179,13 @@ class SEIB:
         if regression is not None and len(getattr(regression, "X_", ())):
             self.incumbent = min(self.best_return, float(np.max(regression.predict(regression.X_)[0])))
 
-    def parts(self, X: np.ndarray) -> dict[str, np.ndarray]:
-        """Every term at candidates ``X`` (s, m): value, ei, ucb_gate, boundary, inner, band, proba."""
+    def parts(self, X: np.ndarray, latent=None) -> dict[str, np.ndarray]:
+        """Every term at candidates ``X`` (s, m): value, ei, ucb_gate, boundary, inner, band, proba.
+
+        ``latent``: g_S's ``(mean, var)`` at ``X`` if already computed.
+        """
         cfg = self.config
-        g, g_var = self.classifier.predict_latent(X)
+        g, g_var = self.classifier.predict_latent(X) if latent is None else latent
         p = expected_sigmoid(g, g_var)
         inner = p >= cfg.p_inner
         band = (p >= cfg.p_band) & ~inner
@@ -279,5 +283,20 @@ class SEIB:
         return out
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
-        """Acquisition values at candidates ``X`` (s, m) -> (s,)."""
-        return self.parts(X)["value"]
+        """Acquisition values at candidates ``X`` (s, m) -> (s,).
+
+        The value at a point depends on that point alone, and it is 0 wherever ``p < p_band``. With
+        ``p_band > 1/2`` that holds wherever g_S's latent mean is <= 0 (then ``E[sigma(g)] <= 1/2``),
+        so the full posterior is computed only where the mean is positive: the same values, for a
+        fraction of the cost on a maximiser's grid that is mostly unexplored.
+        """
+        X = np.asarray(X, dtype=float)
+        positive = getattr(self.classifier, "predict_latent_positive", None)
+        if self.config.p_band < _HALF_AND_MARGIN or positive is None or len(X) == 0:
+            return self.parts(X)["value"]
+        value = np.zeros(len(X))
+        g, g_var = positive(X)
+        maybe = np.flatnonzero(g > 0.0)
+        if maybe.size:
+            value[maybe] = self.parts(X[maybe], latent=(g[maybe], g_var[maybe]))["value"]
+        return value

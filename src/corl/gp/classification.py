@@ -374,6 +374,19 @@ class GPClassifier:
         # Alg. 3.2, lines 4-6: mean = m0 + ks^T dlp, var = kss - |L \ (sW ks)|^2
         return gaussian_posterior(self.kernel_, self.X_, Xs, self.alpha_, self._L_inv_sW, self.prior_mean)
 
+    def predict_latent_positive(self, Xs) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`predict_latent` with the variance only where the mean is > 0 (NaN elsewhere).
+
+        ``E[sigma(g)] <= 1/2`` wherever the mean is <= 0, so a caller that only wants points with
+        ``p > 1/2`` skips most of the cost on a grid that is mostly unexplored.
+        """
+        self._check_fitted()
+        Xs = as_matrix(Xs, self.X_.shape[1], name="Xs")
+        if self.X_.shape[0] == 0:
+            mean = np.full(Xs.shape[0], self.prior_mean)
+            return mean, np.where(mean > 0, floor_variance(self.kernel_.diag(Xs)), np.nan)
+        return gaussian_posterior(self.kernel_, self.X_, Xs, self.alpha_, self._L_inv_sW, self.prior_mean, above=0.0)
+
     def predict_proba(self, Xs) -> np.ndarray:
         """Averaged predictive probability of success ``E[sigma(g)]`` (GPML eq. 3.25); (s,)."""
         mean, var = self.predict_latent(Xs)

@@ -97,7 +97,7 @@ def maximize_in_log_space(objective, x0: np.ndarray, log_bounds: np.ndarray, n_r
 _CHUNK_ELEMENTS = 1 << 15  # test points per block * training points: 256 kB blocks stay in cache
 
 
-def gaussian_posterior(kernel: SquaredExponential, X, Xs, weights, V, prior_mean: float):
+def gaussian_posterior(kernel: SquaredExponential, X, Xs, weights, V, prior_mean: float, above=None):
     """Mean and variance ``m0 + ks^T weights`` and ``k(x*, x*) - |V ks|^2`` at test inputs.
 
     The common last step of GPML Alg. 2.1 (``V = L^{-1}``) and Alg. 3.2 (``V = L^{-1} sW``).
@@ -108,6 +108,8 @@ def gaussian_posterior(kernel: SquaredExponential, X, Xs, weights, V, prior_mean
     kernel : covariance function.
     X : (d, m) training inputs, d >= 1; Xs : (s, m) test inputs.
     weights : (d,); V : (d, d).
+    above : optional float: the variance only where the mean exceeds it (most of the cost); NaN
+        elsewhere.
 
     Returns
     -------
@@ -120,6 +122,11 @@ def gaussian_posterior(kernel: SquaredExponential, X, Xs, weights, V, prior_mean
         rows = slice(start, start + block)
         ks = kernel(Xs[rows], X).T  # (d, block)
         mean[rows] = weights @ ks
+        if above is not None:
+            keep = mean[rows] + prior_mean > above
+            var[rows][~keep] = np.nan
+            ks = ks[:, keep]
+            rows = np.arange(start, min(start + block, s))[keep]
         v = V @ ks
         var[rows] -= np.einsum("ij,ij->j", v, v)
     return mean + prior_mean, floor_variance(var)

@@ -70,6 +70,9 @@ class _Reuse:
     def predict_latent(self, X):
         return self._once("predict_latent", X)
 
+    def predict_latent_positive(self, X):
+        return self._once("predict_latent_positive", X)
+
 
 class SafeBOOptimizer(_BayesOpt):
     """Safe Bayesian optimization with SEIB (the ``CORL`` method's black-box step).
