@@ -274,3 +274,31 @@ def test_values_are_the_parts_values_when_only_positive_latent_means_are_worked_
         positive += int(np.any(parts["value"] > 0))
         np.testing.assert_allclose(acq(grid), parts["value"], rtol=1e-9, atol=1e-12)
     assert positive >= 2  # the comparison is not between zeros only
+
+
+def test_the_maximiser_s_lattice_values_are_the_acquisition_s():
+    """In 2-D the maximiser asks ``on_lattice`` for its 129^2 grid: the same values, the same point."""
+    from corl.acquisition import maximize
+    from corl.problem import Bounds
+
+    rng = np.random.default_rng(0)
+    X = rng.uniform(0, 1, size=(30, 2))
+    s = np.linalg.norm(X - 0.5, axis=1) < 0.3
+    clf = GPClassifier(SquaredExponential([0.1, 0.15], 10.0), prior_mean=-7.0).fit(X, s)
+    reg = GPRegression(SquaredExponential(0.3, 1.0), 0.01).fit(X[s], -np.sum((X[s] - 0.7) ** 2, axis=1))
+    acq = SEIB(reg, clf, float(np.max(-np.sum((X[s] - 0.7) ** 2, axis=1))), 0.05, box=([0, 0], [1, 1]))
+    axes = [np.linspace(0, 1, 129)] * 2
+    lattice = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
+    values = acq(lattice)
+    assert np.any(values > 0)
+    np.testing.assert_allclose(acq.on_lattice(lattice, axes), values, rtol=1e-9, atol=1e-12)
+
+    class Plain:  # the same acquisition without on_lattice
+        def __call__(self, Z):
+            return acq(Z)
+
+    box = Bounds(np.zeros(2), np.ones(2))
+    fast = maximize(acq, box, rng=np.random.default_rng(1), extra=X)
+    plain = maximize(Plain(), box, rng=np.random.default_rng(1), extra=X)
+    np.testing.assert_allclose(fast[0], plain[0], atol=1e-12)
+    assert fast[1] == pytest.approx(plain[1], rel=1e-9)

@@ -202,3 +202,16 @@ def test_latent_posterior_only_where_the_mean_is_positive_is_predict_latent_s():
     empty = GPClassifier(SquaredExponential(0.5, 4.0), prior_mean=-3.0).fit(np.zeros((0, 2)), np.zeros(0, bool))
     m0, v0 = empty.predict_latent_positive(Xs[:3])
     assert np.all(m0 == -3.0) and np.all(np.isnan(v0))
+
+
+@pytest.mark.parametrize("m", [1, 2, 3])
+def test_latent_mean_on_a_lattice_factorises_the_kernel(m):
+    rng = np.random.default_rng(m)
+    X = rng.uniform(-2, 2, size=(40, m))
+    gp = GPClassifier(SquaredExponential([0.5, 0.7, 0.6][:m], 4.0), prior_mean=-3.0).fit(X, np.linalg.norm(X, axis=1) < 1.2)
+    axes = [np.linspace(-3, 3, n) for n in (17, 13, 11)[:m]]
+    lattice = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, m)
+    full = gp.predict_latent(lattice)[0]
+    np.testing.assert_allclose(gp.latent_mean_on_lattice(axes), full, rtol=1e-12, atol=1e-12 * np.max(np.abs(full)))
+    with pytest.raises(InputError, match="axes"):
+        gp.latent_mean_on_lattice(axes + [axes[0]])

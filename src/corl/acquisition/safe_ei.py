@@ -282,6 +282,22 @@ class SEIB:
         out[idx] = np.where(open_, ucb, -np.inf).max(axis=0)
         return out
 
+    def on_lattice(self, X: np.ndarray, axes) -> np.ndarray:
+        """Values at the lattice points ``X`` (prod n_j, m) spanned by ``axes`` ('ij' order).
+
+        As :meth:`__call__`, with g_S's mean on the whole lattice from the factorised kernel
+        (:meth:`GPClassifier.latent_mean_on_lattice`); the posterior is worked out only at points
+        whose mean is positive, so the values are the same.
+        """
+        lattice = getattr(self.classifier, "latent_mean_on_lattice", None)
+        if self.config.p_band < _HALF_AND_MARGIN or lattice is None:
+            return self(X)
+        value = np.zeros(len(X))
+        maybe = np.flatnonzero(lattice(axes) > 0.0)
+        if maybe.size:
+            value[maybe] = self(X[maybe])
+        return value
+
     def __call__(self, X: np.ndarray) -> np.ndarray:
         """Acquisition values at candidates ``X`` (s, m) -> (s,).
 

@@ -73,6 +73,12 @@ class _Reuse:
     def predict_latent_positive(self, X):
         return self._once("predict_latent_positive", X)
 
+    def latent_mean_on_lattice(self, axes):
+        key = tuple(np.asarray(a, dtype=float).tobytes() for a in axes)
+        if getattr(self, "_lattice", (None,))[0] != key:
+            self._lattice = (key, self._model.latent_mean_on_lattice(axes))
+        return self._lattice[1]
+
 
 class SafeBOOptimizer(_BayesOpt):
     """Safe Bayesian optimization with SEIB (the ``CORL`` method's black-box step).
