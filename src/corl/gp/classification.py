@@ -36,7 +36,7 @@ from scipy.special import expit, ndtr
 
 from corl.errors import InputError, StateError
 from corl.gp.kernels import SquaredExponential
-from corl.gp.regression import check_training_data, gaussian_posterior, maximize_in_log_space, to_log_bounds
+from corl.gp.regression import check_training_data, gaussian_posterior, maximize_in_log_space, mean_on_lattice, to_log_bounds
 from corl.numerics import as_matrix, cho_solve, cholesky, floor_variance
 
 __all__ = [
@@ -375,29 +375,10 @@ class GPClassifier:
         return gaussian_posterior(self.kernel_, self.X_, Xs, self.alpha_, self._L_inv_sW, self.prior_mean)
 
     def latent_mean_on_lattice(self, axes) -> np.ndarray:
-        """g_S's latent mean on the lattice ``axes[0] x axes[1] x ...`` ('ij' order, flattened).
-
-        The squared exponential factorises over coordinates, ``k(x, x_i) = sf^2 prod_j
-        exp(-(x_j - x_ij)^2 / (2 l_j^2))``, so the mean on an n^m lattice takes m tables of
-        (n, d) exponentials and products instead of n^m * d exponentials. Equal to
-        :meth:`predict_latent`'s mean up to rounding. axes : m 1-D arrays; returns (prod n_j,).
-        """
+        """g_S's latent mean on the lattice spanned by ``axes`` (m 1-D arrays, 'ij' order, flattened):
+        :meth:`predict_latent`'s mean up to rounding, from the factorised kernel (:func:`mean_on_lattice`)."""
         self._check_fitted()
-        axes = [np.asarray(a, dtype=float).reshape(-1) for a in axes]
-        if len(axes) != self.X_.shape[1]:
-            raise InputError(f"need {self.X_.shape[1]} axes, got {len(axes)}")
-        if self.X_.shape[0] == 0:
-            return np.full(int(np.prod([a.size for a in axes])), self.prior_mean)
-        ls = np.broadcast_to(np.asarray(self.kernel_.lengthscales, dtype=float), (len(axes),))
-        tables = [np.exp(-0.5 * ((a[:, None] - self.X_[None, :, j]) / ls[j]) ** 2) for j, a in enumerate(axes)]
-        weighted = tables[0] * (self.alpha_ * float(self.kernel_.signal_std) ** 2)  # (n_0, d)
-        if len(axes) == 1:
-            return weighted.sum(axis=1) + self.prior_mean
-        out = weighted
-        for table in tables[1:]:  # (N, d) x (n_j, d) -> (N * n_j, d): the 'ij' order
-            out = (out[:, None, :] * table[None, :, :]).reshape(-1, table.shape[1]) if table is not tables[-1] \
-                else out @ table.T
-        return out.reshape(-1) + self.prior_mean
+        return mean_on_lattice(self.kernel_, self.X_, axes, self.alpha_, self.prior_mean)
 
     def predict_latent_positive(self, Xs) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`predict_latent` with the variance only where the mean is > 0 (NaN elsewhere).

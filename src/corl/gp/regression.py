@@ -97,6 +97,27 @@ def maximize_in_log_space(objective, x0: np.ndarray, log_bounds: np.ndarray, n_r
 _CHUNK_ELEMENTS = 1 << 15  # test points per block * training points: 256 kB blocks stay in cache
 
 
+def mean_on_lattice(kernel: SquaredExponential, X, axes, weights, prior_mean: float) -> np.ndarray:
+    """``m0 + ks^T weights`` on the lattice ``axes[0] x axes[1] x ...`` ('ij' order, flattened).
+
+    The squared exponential factorises over coordinates, ``k(x, x_i) = sf^2 prod_j
+    exp(-(x_j - x_ij)^2 / (2 l_j^2))``: m tables of (n_j, d) exponentials and products instead of
+    ``prod n_j * d`` exponentials. X : (d, m); axes : m 1-D arrays; weights : (d,). Returns (prod n_j,).
+    """
+    axes = [np.asarray(a, dtype=float).reshape(-1) for a in axes]
+    if len(axes) != X.shape[1]:
+        raise InputError(f"need {X.shape[1]} axes, got {len(axes)}")
+    if X.shape[0] == 0:
+        return np.full(int(np.prod([a.size for a in axes])), float(prior_mean))
+    ls = np.broadcast_to(np.asarray(kernel.lengthscales, dtype=float), (len(axes),))
+    tables = [np.exp(-0.5 * ((a[:, None] - X[None, :, j]) / ls[j]) ** 2) for j, a in enumerate(axes)]
+    out = tables[0] * (weights * float(kernel.signal_std) ** 2)  # (n_0, d)
+    for table in tables[1:-1]:  # (N, d) x (n_j, d) -> (N * n_j, d), 'ij' order
+        out = (out[:, None, :] * table[None, :, :]).reshape(-1, table.shape[1])
+    out = out.sum(axis=1) if len(tables) == 1 else out @ tables[-1].T
+    return out.reshape(-1) + prior_mean
+
+
 def gaussian_posterior(kernel: SquaredExponential, X, Xs, weights, V, prior_mean: float, above=None):
     """Mean and variance ``m0 + ks^T weights`` and ``k(x*, x*) - |V ks|^2`` at test inputs.
 
