@@ -96,17 +96,25 @@ def _local_peak_rollout(x):
     return Outcome(True, -0.5 * x * x + np.cos(3.0 * x))
 
 
-def test_looks_beyond_the_band_instead_of_stopping_at_a_local_peak():
-    from corl.acquisition.safe_ei import SEIBConfig
+def _one_d_runs(box, start, rollout, seibs):
+    """One 40-trial run from ``start`` per named SEIBConfig on the 1-D box ``(low, high)``."""
     from corl.problem import Bounds
 
-    bounds = Bounds(np.array([-np.pi]), np.array([np.pi]))
+    bounds = Bounds(np.array([box[0]]), np.array([box[1]]))
     runs = {}
-    for name, seib in [("band only", SEIBConfig(beyond_rel=np.inf, far_reach=())), ("beyond", SEIBConfig())]:
+    for name, seib in seibs:
         opt = SafeBOOptimizer(bounds, seib=seib, max_evals=40, seed=0)
-        opt.tell(np.array([1.8]), _local_peak_rollout(np.array([1.8])))
-        _loop(opt, _local_peak_rollout, 39)
+        opt.tell(np.array([start]), rollout(np.array([start])))
+        _loop(opt, rollout, 39)
         runs[name] = opt
+    return runs
+
+
+def test_looks_beyond_the_band_instead_of_stopping_at_a_local_peak():
+    from corl.acquisition.safe_ei import SEIBConfig
+
+    runs = _one_d_runs((-np.pi, np.pi), 1.8, _local_peak_rollout,
+                       [("band only", SEIBConfig(beyond_rel=np.inf, far_reach=())), ("beyond", SEIBConfig())])
     old, new = runs["band only"], runs["beyond"]
     assert abs(old.best[0][0] - 1.88) < 0.1 and old.n_evals < 10  # the band-point gate stops at the local peak
     assert abs(new.best[0][0]) < 0.05 and new.best[1] > 0.99  # looking beyond crosses the valley to 0
@@ -123,15 +131,8 @@ def _valley_rollout(theta):  # valley-like: safe on (1, 9), a local peak at 2.8 
 
 def test_looks_far_across_a_valley_wider_than_a_length_scale():
     from corl.acquisition.safe_ei import SEIBConfig
-    from corl.problem import Bounds
 
-    bounds = Bounds(np.array([0.0]), np.array([10.0]))
-    runs = {}
-    for name, seib in [("beyond", SEIBConfig(far_reach=())), ("far", SEIBConfig())]:
-        opt = SafeBOOptimizer(bounds, seib=seib, max_evals=40, seed=0)
-        opt.tell(np.array([2.5]), _valley_rollout(np.array([2.5])))
-        _loop(opt, _valley_rollout, 39)
-        runs[name] = opt
+    runs = _one_d_runs((0.0, 10.0), 2.5, _valley_rollout, [("beyond", SEIBConfig(far_reach=())), ("far", SEIBConfig())])
     near, far = runs["beyond"], runs["far"]
     assert near.best[1] < 0.71 and near.stop_reason is not StopReason.BUDGET  # stops at the local peak
     assert abs(far.best[0][0] - 7.5) < 0.1 and far.best[1] > 0.99  # looking far crosses to the optimum
@@ -147,15 +148,9 @@ def _wide_valley_rollout(theta):  # safe on (1, 9), a local peak at 2.8 by the s
 
 def test_far_ladder_looks_again_only_where_corl_would_stop():
     from corl.acquisition.safe_ei import SEIBConfig
-    from corl.problem import Bounds
 
-    bounds = Bounds(np.array([0.0]), np.array([10.0]))
-    runs = {}
-    for name, seib in [("default", SEIBConfig()), ("ladder", SEIBConfig(far_ladder=(3.0,)))]:
-        opt = SafeBOOptimizer(bounds, seib=seib, max_evals=40, seed=0)
-        opt.tell(np.array([2.5]), _wide_valley_rollout(np.array([2.5])))
-        _loop(opt, _wide_valley_rollout, 39)
-        runs[name] = opt
+    runs = _one_d_runs((0.0, 10.0), 2.5, _wide_valley_rollout,
+                       [("default", SEIBConfig()), ("ladder", SEIBConfig(far_ladder=(3.0,)))])
     default, ladder = runs["default"], runs["ladder"]
     # far_beta 2 sees no gain 4 length scales out: CORL stops at the local peak
     assert default.best[1] < 0.71 and default.stop_reason is StopReason.NO_IMPROVEMENT
