@@ -260,7 +260,7 @@ def test_far_beta_is_the_ucb_width_on_the_far_ray_and_only_there(far_beta):
     np.testing.assert_array_equal(near, plain)
 
 
-@pytest.mark.parametrize("p_band", [0.55, 0.45])
+@pytest.mark.parametrize("p_band", [0.55, 0.6])
 def test_values_are_the_parts_values_when_only_positive_latent_means_are_worked_out(p_band):
     """``SEIB(X)`` skips g_S's variance where its latent mean is <= 0 (p <= 1/2 < p_band there)."""
     reg, clf, scale = _valley_models(fail_left=True)
@@ -289,16 +289,54 @@ def test_the_maximiser_s_lattice_values_are_the_acquisition_s():
     acq = SEIB(reg, clf, float(np.max(-np.sum((X[s] - 0.7) ** 2, axis=1))), 0.05, box=([0, 0], [1, 1]))
     axes = [np.linspace(0, 1, 129)] * 2
     lattice = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 2)
-    values = acq(lattice)
+    values = acq.parts(lattice)["value"]  # every term worked out everywhere
     assert np.any(values > 0)
     np.testing.assert_allclose(acq.on_lattice(lattice, axes), values, rtol=1e-9, atol=1e-12)
 
-    class Plain:  # the same acquisition without on_lattice
+    class Plain:  # the acquisition as parts() computes it, without the shortcuts
         def __call__(self, Z):
-            return acq(Z)
+            return acq.parts(Z)["value"]
 
     box = Bounds(np.zeros(2), np.ones(2))
-    fast = maximize(acq, box, rng=np.random.default_rng(1), extra=X)
-    plain = maximize(Plain(), box, rng=np.random.default_rng(1), extra=X)
-    np.testing.assert_allclose(fast[0], plain[0], atol=1e-12)
-    assert fast[1] == pytest.approx(plain[1], rel=1e-9)
+    for extra in (X, None):
+        fast = maximize(acq, box, rng=np.random.default_rng(1), extra=extra)
+        plain = maximize(Plain(), box, rng=np.random.default_rng(1), extra=extra)
+        np.testing.assert_allclose(fast[0], plain[0], atol=1e-12)
+        assert fast[1] == pytest.approx(plain[1], rel=1e-9)
+
+
+def test_behind_is_judged_along_the_ray_with_unequal_length_scales():
+    """ARD g_S: a failure is behind only if it is behind the ray as the ray moves in g_S's length
+    scales (direction n / l_S), not the normal scaled the other way (n * l_S)."""
+    from corl.gp.kernels import SquaredExponential as SE
+
+    ls = np.array([0.1, 1.0])
+
+    class Classifier:  # latent mean 1 - x - y: outward normal (1, 1) / sqrt(2) everywhere
+        kernel = SE(ls, 5.0)
+
+        def __init__(self, failed):
+            self.X_, self.y_ = np.vstack([[-0.05, 0.0], failed]), np.array([1.0] + [-1.0] * len(failed))
+
+        def predict_latent(self, X):
+            X = np.asarray(X)
+            return 1.0 - X @ np.array([1.0, 1.0]), np.ones(len(X))
+
+    class Regression:  # R rises outward: every open ray point promises a gain
+        kernel, X_ = SE(ls, 1.0), np.zeros((0, 2))
+
+        def predict(self, X):
+            X = np.asarray(X)
+            return X @ np.array([1.0, 1.0]), np.full(len(X), 1e-6)
+
+    band = np.array([[0.0, 0.0]])
+    near_ray = Classifier(np.array([[0.3, -1.2]]))  # within far_open of the ray points 2-4 length scales out
+    behind = Classifier(np.array([[-0.15, -0.05]]))  # 1.5 g_S length scales away, but behind the ray
+    far = dict(gated=True, beyond=True, far=True)
+    closed = SEIB(Regression(), near_ray, 0.0, 1.0, SEIBConfig(far_behind=0.25), **far).reach_ucb(band)
+    old_rule = SEIB(Regression(), near_ray, 0.0, 1.0, SEIBConfig(far_behind=1.0), **far).reach_ucb(band)
+    opened = SEIB(Regression(), behind, 0.0, 1.0, SEIBConfig(far_behind=0.25), **far).reach_ucb(band)
+    assert closed[0] == pytest.approx(old_rule[0])  # the failure near the ray still ends it
+    assert opened[0] > closed[0] + 0.1  # the one behind does not ...
+    blocked = SEIB(Regression(), behind, 0.0, 1.0, SEIBConfig(far_behind=1.0), **far).reach_ucb(band)
+    assert blocked[0] == -np.inf  # ... which every failure did before

@@ -164,10 +164,14 @@ def test_far_ladder_looks_again_only_where_corl_would_stop():
 def test_far_ladder_settings_are_checked():
     from corl.acquisition.safe_ei import SEIBConfig
 
-    for bad in ((-1.0,), (float("nan"),), (3.0, float("inf"))):
+    for bad in ((-1.0,), (float("nan"),), (3.0, float("inf")), 3.0, None, "ab", (True,), ("3",)):
         with pytest.raises(InputError, match="far_ladder"):
             SEIBConfig(far_ladder=bad)
     assert SEIBConfig().far_ladder == ()  # the default stops at once
+    assert SEIBConfig(far_ladder=[2, 3.5]).far_ladder == (2.0, 3.5)  # a list is kept as a tuple: hashable
+    hash(SEIBConfig(far_ladder=[3.0]))
+    with pytest.raises(InputError, match="far_behind"):
+        SEIBConfig(far_behind=None)
 
 
 def test_a_user_sets_corl_s_acquisition_through_the_public_settings():
@@ -234,3 +238,35 @@ def test_a_decision_reuses_predictions_at_the_same_candidates():
     opt.tell(np.array([0.6, 0.2]), rollout(np.array([0.6, 0.2])))
     _loop(opt, rollout, 5)
     assert isinstance(opt._models[1], _Reuse) and isinstance(opt._models[2], _Reuse)
+    clf = opt._models[2]
+    grid = np.random.default_rng(1).random((2000, 2))
+    assert clf.predict_latent_positive(grid) is clf.predict_latent_positive(grid.copy())
+    for _ in range(20):  # other calls in between (a look makes about ten) do not evict it
+        clf.predict_latent(np.random.default_rng(2).random((3, 2)))
+    assert clf.predict_latent_positive(grid) is clf.predict_latent_positive(grid)
+    reg = opt._models[1]
+    noisy = reg.predict(grid[:5], include_noise=True)[1]  # keyword calls go to the model itself
+    assert np.all(noisy > reg.predict(grid[:5])[1])
+
+
+def test_an_optimizer_can_be_copied_and_pickled_after_a_decision():
+    import copy
+    import pickle
+
+    opt = SafeBOOptimizer(UNIT2, max_evals=30, seed=0)
+    rollout = quadratic(C2, fail_above=0.8)
+    opt.tell(np.array([0.6, 0.2]), rollout(np.array([0.6, 0.2])))
+    x = opt.ask()
+    for twin in (copy.deepcopy(opt), pickle.loads(pickle.dumps(opt))):
+        np.testing.assert_array_equal(twin.ask(), x)
+        twin.tell(x, rollout(x))
+        assert twin.n_evals == 2 and opt.n_evals == 1
+
+
+def test_far_ladder_without_a_far_look_stops_as_without_it():
+    from corl.acquisition.safe_ei import SEIBConfig
+
+    runs = _one_d_runs((0.0, 10.0), 2.5, _wide_valley_rollout,
+                       [("none", SEIBConfig(far_reach=())), ("ladder", SEIBConfig(far_reach=(), far_ladder=(3.0,)))])
+    np.testing.assert_array_equal(runs["ladder"].X_, runs["none"].X_)  # far_reach=(): never look far, ladder or not
+    assert runs["ladder"].stop_reason is runs["none"].stop_reason

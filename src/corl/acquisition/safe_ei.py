@@ -135,10 +135,15 @@ class SEIBConfig:
             raise InputError(f"beta and far_beta (UCB widths) must be finite, got {self.beta}, {self.far_beta}")
         if len(self.reach) == 0 or min(self.reach) < 0:
             raise InputError(f"reach needs at least one distance, all >= 0, got {self.reach}")
-        if not -1.0 <= self.far_behind <= 1.0:  # NaN fails too
-            raise InputError(f"far_behind is a cosine, in [-1, 1] (1: every failure blocks), got {self.far_behind}")
-        if any(not (np.isfinite(b) and b >= 0) for b in self.far_ladder):
-            raise InputError(f"far_ladder needs finite UCB widths >= 0 (or none: stop at once), got {self.far_ladder}")
+        if isinstance(self.far_behind, bool) or not isinstance(self.far_behind, (int, float, np.floating)) \
+                or not -1.0 <= self.far_behind <= 1.0:  # NaN fails too
+            raise InputError(f"far_behind is a cosine, in [-1, 1] (1: every failure blocks), got {self.far_behind!r}")
+        ladder = self.far_ladder
+        if not isinstance(ladder, (tuple, list)) or any(
+                isinstance(b, bool) or not isinstance(b, (int, float, np.floating)) or not (np.isfinite(b) and b >= 0)
+                for b in ladder):
+            raise InputError(f"far_ladder needs a tuple of finite UCB widths >= 0 (or (): stop at once), got {ladder!r}")
+        object.__setattr__(self, "far_ladder", tuple(float(b) for b in ladder))  # hashable, as a frozen config is
         if self.far_reach and min(self.far_reach) < 0:
             raise InputError(f"far_reach needs distances >= 0 (or none: never look far), got {self.far_reach}")
 
@@ -267,7 +272,7 @@ class SEIB:
             d2 = np.sum(((pts[:, None, :] - failed[None]) / ls_s) ** 2, axis=2)  # (len(reach) * s, f)
             if self.far:  # a failure well behind the band point (on the far side of the safe set) does not block
                 u = (failed[None] - Xb[:, None, :]) / ls_s  # (s, f, m), in g_S length scales
-                nu = n * ls_s  # the outward normal in the same scaled space
+                nu = n / ls_s  # the ray's direction in the same scaled space
                 cos = np.einsum("sfm,sm->sf", u, nu) / np.maximum(
                     np.linalg.norm(u, axis=2) * np.linalg.norm(nu, axis=1)[:, None], 1e-300)
                 behind = (cos < -self.config.far_behind) & (np.linalg.norm(nu, axis=1)[:, None] > 0)

@@ -49,23 +49,26 @@ class _Reuse:
     costs little more than one that proposes. Results are the very arrays computed the first time.
     """
 
-    def __init__(self, model, keep: int = 4) -> None:
+    def __init__(self, model, keep: int = 32) -> None:
         self._model, self._keep, self._seen = model, keep, []
 
     def __getattr__(self, name):  # kernel, X_, y_, ... of the model
+        if name.startswith("_"):  # not the model's (and no recursion while unpickling or copying)
+            raise AttributeError(name)
         return getattr(self._model, name)
 
     def _once(self, method: str, X):
         X = np.asarray(X, dtype=float)
-        for key, X_seen, out in self._seen:
+        for i, (key, X_seen, out) in enumerate(self._seen):
             if key == method and X_seen.shape == X.shape and np.array_equal(X_seen, X):
+                self._seen.insert(0, self._seen.pop(i))  # least recently used goes first
                 return out
         out = getattr(self._model, method)(X)
         self._seen = ([(method, X.copy(), out)] + self._seen)[: self._keep]
         return out
 
-    def predict(self, X):
-        return self._once("predict", X)
+    def predict(self, X, **kw):
+        return self._model.predict(X, **kw) if kw else self._once("predict", X)
 
     def predict_latent(self, X):
         return self._once("predict_latent", X)
@@ -113,10 +116,14 @@ class SafeBOOptimizer(_BayesOpt):
         few = np.sum(self.success_) < self.seib.trust_per_dim * self.bounds.dim
         if few and not value >= self.seib.stop_value:  # too few successes to trust the gate: open it
             x, value = self._maximize(gated=False)
-        for width in self.seib.far_ladder:  # about to stop: may R be higher far out at a wider UCB?
-            if not self._stops(x, value):
-                break
-            x, value = self._maximize(beyond=True, far=True, far_beta=width)
+        if self._stops(x, value) and self.seib.far_reach and self.seib.far_ladder:
+            stopping = (x, value, self.last_acquisition)
+            for width in self.seib.far_ladder:  # about to stop: may R be higher far out at a wider UCB?
+                x, value = self._maximize(beyond=True, far=True, far_beta=width)
+                if not self._stops(x, value):
+                    break
+            else:  # nothing at any width: stop as without the ladder
+                x, value, self.last_acquisition = stopping
         if not value >= self.seib.stop_value:
             return StopReason.NO_IMPROVEMENT  # nothing both plausible and safe is left, and no uncertain boundary
         if _stop(self.config.stop_rule, x, self.X_, self.config.stop_distance, self._scale):
