@@ -30,9 +30,15 @@ def dump(path):
 
 
 def trials_of(path):
-    with RunStore(path, readonly=True) as db:
+    from corl.store.records import EmptyStoreError
+
+    try:
+        db = RunStore(path, readonly=True)
+    except EmptyStoreError:  # killed after creating the file, before the store's first commit
+        return [], None
+    with db:
         run = db.latest_run()
-        if run is None:  # killed after creating the file, before the run's first commit
+        if run is None:  # killed after creating the store, before the run's first commit
             return [], None
         return [(t.index, t.proposal.step, t.proposal.w.tobytes(), t.proposal.theta.tobytes(),
                  None if t.outcome is None else (t.outcome.success, t.outcome.return_))
@@ -190,3 +196,29 @@ def test_corl_overrides_keep_the_default_settings_of_a_user_task(monkeypatch):
     assert seen["s"].regression.fit_hyperparameters and seen["s"].corl.rollout_every_step is False
     _build(SyntheticTask(), "CORL+PIBU", 0, {"rollout_every_step": False})
     assert seen["s"].regression == methods.MethodSettings().regression  # the paper's, for the paper's task
+
+
+@pytest.mark.parametrize("left", ["empty file", "header only"])
+def test_resume_starts_over_from_a_store_whose_creation_was_killed(tmp_path, left):
+    """A kill between creating the file and the store's first commit leaves an empty (or, once
+    the log mode is set, a header-only) SQLite file: --resume starts the run, nothing was lost."""
+    import sqlite3
+
+    out = tmp_path / "killed"
+    out.mkdir()
+    store = out / "run.corl"
+    store.touch()
+    if left == "header only":
+        con = sqlite3.connect(store)
+        con.execute("PRAGMA journal_mode=WAL")
+        con.close()
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
+    args = ["run", "synthetic", "--seed", "1", "--quiet", "--out", str(out), "--resume"]
+    res = subprocess.run(CORL + args, env=env, capture_output=True)
+    assert res.returncode == 0, res.stderr.decode()
+    got, status = trials_of(store)
+    assert status == "finished" and len(got) > 100
+    empty = tmp_path / "empty.corl"
+    empty.touch()
+    listed = subprocess.run(CORL + ["runs", "--store", str(empty)], env=env, capture_output=True)
+    assert listed.returncode == 2 and b"is empty, not a corl store" in listed.stderr  # reading: a clear error

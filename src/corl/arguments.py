@@ -130,8 +130,12 @@ NEW_PATHS = NewPaths()
 def latest_run(path: Path):
     """The latest :class:`corl.store.RunInfo` of the store at ``path``, read-only; None without a store or run."""
     from corl.store import RunStore
+    from corl.store.records import EmptyStoreError
 
     if not path.is_file():
         return None
-    with RunStore(path, readonly=True) as db:
-        return db.latest_run()
+    try:
+        with RunStore(path, readonly=True) as db:
+            return db.latest_run()
+    except EmptyStoreError:  # created, then killed before its first commit: no run yet
+        return None

@@ -24,6 +24,10 @@ class StoreError(CorlError):
     """The run store cannot do what was asked (damaged file, second writer, trial told twice, ...)."""
 
 
+class EmptyStoreError(StoreError):
+    """Read-only open of a file that holds no store yet: empty, or its creation killed before the first commit."""
+
+
 class RunStatus(str, Enum):
     """Where a run stands; a running run can be resumed, a finished one is only read."""
 

@@ -15,7 +15,7 @@ from corl.store.export import check_export_path, write_export
 from corl.store.lock import WriterLock
 from corl.store.machine import machine_info
 from corl.store.records import (
-    RunInfo, RunStatus, StoreError, TrialRecord, _as_int, _decode_array, _encode_array, _json, _load_json, _now,
+    EmptyStoreError, RunInfo, RunStatus, StoreError, TrialRecord, _as_int, _decode_array, _encode_array, _json, _load_json, _now,
 )
 from corl.store.schema import _SCHEMA, _holds
 from corl.versions import library_versions
@@ -122,8 +122,10 @@ class RunStore:
             header_format = db.execute("PRAGMA user_version").fetchone()[0]
             n_objects = db.execute("SELECT COUNT(*) FROM sqlite_master").fetchone()[0]
             if app_id == 0 and header_format == 0 and n_objects == 0:  # a new, empty file
-                if not self._create:
-                    raise StoreError(f"{self.path} is empty, not a corl store; check the --store path")
+                if self.readonly:
+                    raise EmptyStoreError(f"{self.path} is empty, not a corl store; check the --store path")
+                # writing (create, or resume): an empty file is a store whose creation was killed
+                # before its first commit; nothing was in it, so it is initialised now
                 self._initialise()
                 return
             if app_id != APPLICATION_ID:
