@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from corl.experiments.figures import plot_learning_curve, plot_return_map
+from corl.mujoco.video import RENDERING_HINT
 
 __all__ = ["run_summary", "task_extras", "run_text", "write_run_artifacts"]
 
@@ -95,6 +96,5 @@ def write_run_artifacts(task, learner, out: Path, *, video: bool = True) -> dict
         try:
             files["video"] = str(render(learner.history[0][0].w, learner.best.w, out / "demo_vs_learned.mp4"))
         except Exception as exc:  # no OpenGL on this machine: the run's results stand without it
-            files["video_skipped"] = (f"{type(exc).__name__}: {exc}. Offscreen rendering needs EGL or "
-                                      "OSMesa (Debian: libegl1 libgl1); set MUJOCO_GL=egl or osmesa")
+            files["video_skipped"] = f"{type(exc).__name__}: {exc}. {RENDERING_HINT}"
     return files

@@ -24,7 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["Camera", "FrameRecorder", "caption", "write_side_by_side", "rendering_available", "make_renderer"]
+__all__ = ["Camera", "FrameRecorder", "caption", "write_side_by_side", "rendering_available", "make_renderer",
+           "RENDERING_HINT"]
+
+#: What to do when no offscreen OpenGL context can be made (said wherever a video is skipped).
+RENDERING_HINT = "Offscreen rendering needs EGL or OSMesa (Debian: libegl1 libgl1); set MUJOCO_GL=egl or osmesa"
 
 
 @dataclass(frozen=True)
@@ -112,8 +116,7 @@ def rendering_available() -> tuple[bool, str]:
         model = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='.1'/></worldbody></mujoco>")
         make_renderer(model, height=8, width=8).close()
     except Exception as exc:  # no EGL / OSMesa library, or no GPU driver
-        return False, (f"{type(exc).__name__}: {exc}. Offscreen rendering needs EGL or OSMesa "
-                       "(Debian: libegl1 libgl1); set MUJOCO_GL=egl or osmesa")
+        return False, f"{type(exc).__name__}: {exc}. {RENDERING_HINT}"
     return True, ""
 
 

@@ -31,6 +31,7 @@ from typing import Callable
 import numpy as np
 
 from corl.errors import CorlError, InputError
+from corl.mujoco.video import RENDERING_HINT
 from corl.store import RunInfo, RunStore, StoreError, TrialRecord
 
 __all__ = ["RunReport", "collect_report", "write_reports", "data_uri", "VIDEO_NAMES"]
@@ -204,8 +205,7 @@ def _video(report: RunReport, task, learner, folder: Path, n_runs: int) -> None:
     try:
         path = Path(render(report.records[0].proposal.w, w_best, folder / "demo_vs_learned.mp4"))
     except Exception as exc:  # no OpenGL on this machine: the rest of the page stands without it
-        report.notes.append(f"No video ({type(exc).__name__}: {exc}). Offscreen rendering needs EGL or "
-                            "OSMesa (Debian: libegl1 libgl1); set MUJOCO_GL=egl or osmesa, or pass --no-video.")
+        report.notes.append(f"No video ({type(exc).__name__}: {exc}). {RENDERING_HINT}, or pass --no-video.")
         return
     report.video = (_MIME[path.suffix.lower()], data_uri(path), "rendered for this report")
 
