@@ -236,6 +236,12 @@ class PandaSwitchTask:
         track(self.robot, PDController(self.robot, KP, KV), q, DURATION, on_step=step)
         return {k: np.array(v) for k, v in log.items()}
 
+    @staticmethod
+    def press_force(log) -> float:
+        """The force R is computed from: the mean contact force from the first touch on (N); NaN untouched."""
+        touch = log["touch"]
+        return float(log["force"][int(np.argmax(touch)):].mean()) if touch.any() else float("nan")
+
     def rollout(self, w) -> Outcome:
         log = self.run(w)
         touch = log["touch"]
@@ -246,7 +252,7 @@ class PandaSwitchTask:
         # the rubber pads (17.5 mm long) stay whole on the paddle and on its surface
         on_paddle = bool(np.all((log["along"][after] > TIP_HALF) & (log["along"][after] < LENGTH - TIP_HALF)
                                 & (np.abs(log["gap"][after]) < 0.02)))
-        force = float(log["force"][after].mean())
+        force = self.press_force(log)
         info.update(force_mean=force, touch_fraction=float(touch[after].mean()), on_paddle=on_paddle)
         if not (info["angle_max"] > SWITCH and on_paddle and info["touch_fraction"] > 0.8):
             return Outcome(False, None, info)
@@ -263,7 +269,7 @@ class PandaSwitchTask:
             finally:
                 frames = rec.close()
             r, _ = self.cost_residuals(w)
-            panels.append(caption(frames, f"{name}: J = {r @ r:.0f}, press {log['force'][log['touch']].mean():.1f} N"))
+            panels.append(caption(frames, f"{name}: J = {r @ r:.0f}, press {self.press_force(log):.1f} N"))  # as R
         return str(write_side_by_side(path, *panels))
 
 

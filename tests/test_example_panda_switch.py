@@ -44,7 +44,13 @@ def test_demonstration_is_projected_and_succeeds():
     assert np.max(np.abs(h)) < 1e-6                   # on h = 0 after the projection
     assert task.demo_report.error_before > 1e-4       # the fitted spline had missed its waypoints
     assert abs(demo.theta[0] - 0.05) < 1e-6
-    assert task.rollout(demo.w).success
+    outcome = task.rollout(demo.w)
+    assert outcome.success
+    from examples.panda_switch import F_REF
+
+    force = task.press_force(task.run(demo.w))  # what the video's caption shows
+    assert outcome.return_ == pytest.approx(1.0 - force / F_REF, rel=1e-9, abs=1e-9)  # the force R comes from
+    assert 4.0 < force < 5.5  # the README's 4.8 N
 
 
 @pytest.mark.slow
