@@ -167,7 +167,7 @@ def maximize(
         lattice = X[: n * n]
         axes = [lattice.reshape(n, n, 2)[:, 0, 0], lattice.reshape(n, n, 2)[0, :, 1]]
         values = np.concatenate([np.asarray(on_lattice(lattice, axes), dtype=float),
-                                 np.asarray(acquisition(X[n * n:]), dtype=float) if len(X) > n * n else np.zeros(0)])
+                                 np.asarray(acquisition(X[n * n:]), dtype=float)])  # the extra points
     else:
         values = np.asarray(acquisition(bounds.from_unit(U)), dtype=float)
     values = np.where(np.isfinite(values), values, -np.inf)
