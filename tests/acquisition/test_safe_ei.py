@@ -61,6 +61,32 @@ def test_does_not_stall_beside_the_best_point():
     assert at_best < 0.01 * values.max()  # the margin xi leaves nothing to gain at the best point
 
 
+def test_band_rel_raises_the_band_point_gate_s_margin_and_nothing_else():
+    reg, clf = _models()
+    grid = np.linspace(0, 1, 2001)[:, None]
+    base = SEIB(reg, clf, best_return=3.0, scale=1.1, config=SEIBConfig(boundary_weight=1.0))
+    same = SEIB(reg, clf, best_return=3.0, scale=1.1, config=SEIBConfig(boundary_weight=1.0, band_rel=0.005))
+    np.testing.assert_array_equal(same(grid), base(grid))  # below xi (0.01): xi is the margin, as before
+    parts = base.parts(grid)
+    band = parts["band"] & parts["ucb_gate"]
+    mu, var = reg.predict(grid[band])
+    ucb = mu + 2.0 * np.sqrt(var)
+    rel = float(np.median(ucb) - 3.0) / 1.1  # a margin that shuts about half of the open band points
+    assert rel > 0.01
+    strict = SEIB(reg, clf, best_return=3.0, scale=1.1, config=SEIBConfig(boundary_weight=1.0, band_rel=rel)).parts(grid)
+    kept = strict["ucb_gate"][band]
+    assert 0 < kept.sum() < band.sum()
+    np.testing.assert_array_equal(kept, ucb > 3.0 + rel * 1.1)  # the gate is UCB_R > R^+ + band_rel * scale
+    assert np.all(strict["value"][band][~kept] == 0.0)  # a shut band point is not proposed
+    inner = parts["inner"]
+    np.testing.assert_array_equal(strict["value"][inner], parts["value"][inner])  # the inner EI is untouched
+    shut = SEIB(reg, clf, best_return=3.0, scale=1.1, config=SEIBConfig(band_rel=float("inf"))).parts(grid)
+    assert not np.any(shut["value"][shut["band"]])  # inf: the edge is never mapped at the band points
+    for bad in (-0.1, float("nan")):
+        with pytest.raises(InputError, match="band_rel"):
+            SEIBConfig(band_rel=bad)
+
+
 def test_without_a_return_model_only_the_boundary_acts():
     _, clf = _models()
     acq = SEIB(None, clf, best_return=0.0, scale=1.0)

@@ -8,11 +8,13 @@ changes what each one rewards:
                     u = (mu_R(theta) - R^+ - xi) / sigma_R(theta)                    (EI, margin xi)
     UCB_R(theta)  = mu_R(theta) + beta * sigma_R(theta)
     a(theta) = [p(theta) >= p_inner] * EI_xi(theta) / scale                          (inner term)
-             + [p_band <= p(theta) < p_inner] * [UCB_R(theta) > R^+ + xi]
+             + [p_band <= p(theta) < p_inner] * [UCB_R(theta) > R^+ + xi_b]
                * max(EI_xi(theta) / scale, w_b * V(theta))                            (gated boundary)
 
-with ``V = sqrt(V_gS) / sf`` (PIBU's normalised boundary uncertainty, Eq. 17's second term) and
-``p = E[sigma(g_S)]``. Consequences:
+with ``V = sqrt(V_gS) / sf`` (PIBU's normalised boundary uncertainty, Eq. 17's second term),
+``p = E[sigma(g_S)]`` and the gate's margin ``xi_b = max(xi, band_rel * scale)`` (``band_rel`` 0 by
+default: ``xi_b = xi``; larger, the edge is mapped only where the gain could be larger, with fewer
+failures and fewer optima found: docs/safe_bo_suite.md). Consequences:
 
 * the boundary is explored only where the return model leaves room to beat R^+ by the margin
   (``UCB_R > R^+ + xi``): an edge where R is low is never mapped;
@@ -109,6 +111,7 @@ class SEIBConfig:
     p_inner: float = 0.7  # inner region: p >= p_inner (PIBU: 0.55)
     p_band: float = 0.55  # lowest p ever proposed: the boundary band is [p_band, p_inner) (PIBU: 0.45)
     xi_rel: float = 0.01  # improvement margin as a fraction of the returns' spread
+    band_rel: float = 0.0  # the band-point gate's margin, a fraction of the spread (at least xi): fewer failures, fewer optima
     beta: float = 2.0  # UCB_R width that gates the boundary term
     boundary_weight: float = 0.1  # w_b: weight of V on a gated stretch of the boundary
     stop_value: float = 1e-4  # stop when max a < stop_value (EI in units of the spread)
@@ -126,11 +129,12 @@ class SEIBConfig:
     def __post_init__(self) -> None:
         if not 0.0 < self.p_band <= self.p_inner < 1.0:
             raise InputError(f"SEIB needs 0 < p_band <= p_inner < 1, got {self.p_band}, {self.p_inner}")
-        values = (self.xi_rel, self.beta, self.boundary_weight, self.stop_value, self.trust_per_dim,
+        values = (self.xi_rel, self.band_rel, self.beta, self.boundary_weight, self.stop_value, self.trust_per_dim,
                   self.beyond_rel, self.ray_open, self.far_rel, self.far_open, self.far_beta)
         if any(np.isnan(v) for v in values) or min(values) < 0:
-            raise InputError("xi_rel, beta, boundary_weight, stop_value, trust_per_dim, beyond_rel, ray_open, far_rel, "
-                             "far_open and far_beta must be >= 0 (beyond_rel=inf never looks beyond the band)")
+            raise InputError("xi_rel, band_rel, beta, boundary_weight, stop_value, trust_per_dim, beyond_rel, ray_open, "
+                             "far_rel, far_open and far_beta must be >= 0 (beyond_rel=inf never looks beyond the band, "
+                             "band_rel=inf never maps the edge at the band points)")
         if not (np.isfinite(self.beta) and np.isfinite(self.far_beta)):
             raise InputError(f"beta and far_beta (UCB widths) must be finite, got {self.beta}, {self.far_beta}")
         if len(self.reach) == 0 or min(self.reach) < 0:
@@ -213,7 +217,7 @@ class SEIB:
                 if self.far:  # toward the largest promise, not around the whole frontier
                     boundary = boundary * np.where(gate, excess, 0.0) / self.scale
             elif self.gated:  # UCB_R at the band point
-                gate[need] = mu + cfg.beta * np.sqrt(var) > self.best_return + xi
+                gate[need] = mu + cfg.beta * np.sqrt(var) > self.best_return + max(xi, cfg.band_rel * self.scale)
         edge = np.where(band & gate, np.maximum(ei, cfg.boundary_weight * boundary), 0.0)
         far = self.gated and self.beyond and self.far  # looking far asks the band only: the inner EI
         value = edge if far else np.where(inner, ei, 0.0) + edge  # had its turn and left nothing new
