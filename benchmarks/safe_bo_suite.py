@@ -549,15 +549,21 @@ def main(argv=None) -> None:
     ap.add_argument("--verdict", action="store_true",
                     help="with --table: CORL beside the best-finding and the least-failing peer on each problem, "
                          "and on how many problems it finds as often and fails less")
+    ap.add_argument("--trade-off", default=None, metavar="PNG",
+                    help="with --table: plot optima found against failures per run, one point per method (or "
+                         "LABEL=FILE), over the problems every one of them ran, and print the points")
     ap.add_argument("--compare", nargs=2, default=None, metavar=("BEFORE", "AFTER"),
                     help="run nothing: CORL's runs in two --json files side by side, per problem")
     args = ap.parse_args(argv)
-    if args.verdict and not args.table:
-        ap.error("--verdict reads saved runs: give them with --table FILE...")
+    if (args.verdict or args.trade_off) and not args.table:
+        ap.error("--verdict and --trade-off read saved runs: give them with --table FILE...")
     if args.compare and args.table:
         ap.error("--compare and --table are two reports: give one")
     if args.compare:
         print_compare(*args.compare, markdown=args.markdown)
+        return
+    if args.table and args.trade_off:
+        plot_trade_off(args.table, args.trade_off, args.budget, markdown=args.markdown)
         return
     if args.table:
         (print_verdict if args.verdict else print_table)(args.table, args.budget, markdown=args.markdown)
@@ -607,11 +613,25 @@ def main(argv=None) -> None:
         Path(args.json).write_text(json.dumps(records, indent=1))
 
 
+def _labelled(arg) -> tuple[str | None, str]:
+    """``LABEL=FILE`` -> (LABEL, FILE); a plain FILE (or one whose name holds "=") -> (None, FILE)."""
+    arg = str(arg)
+    label, eq, path = arg.partition("=")
+    if not eq or not label or Path(arg).exists():
+        return None, arg
+    return label, path
+
+
 def load_runs(paths) -> dict:
-    """``{(problem, method): {start: record}}`` from ``--json`` files, merged (a start saved twice: the last)."""
+    """``{(problem, method): {start: record}}`` from ``--json`` files, merged (a start saved twice: the last).
+
+    A path given as ``LABEL=FILE`` names every run in that file ``LABEL`` instead of its method (two
+    settings of CORL side by side).
+    """
     runs: dict = {}
     names = {p.name for p in PROBLEMS}
-    for path in paths:
+    for arg in paths:
+        label, path = _labelled(arg)
         try:
             recs = json.loads(Path(path).read_text())
             if not isinstance(recs, list) or not recs:
@@ -622,7 +642,7 @@ def load_runs(paths) -> dict:
                     raise KeyError(f"a run without {', '.join(missing)}")
                 if rec["problem"] not in names:
                     raise KeyError(f"unknown problem {rec['problem']!r}")
-                runs.setdefault((rec["problem"], rec["method"]), {})[rec["start"]] = rec
+                runs.setdefault((rec["problem"], label or rec["method"]), {})[rec["start"]] = rec
         except (OSError, ValueError, TypeError, KeyError) as exc:
             print(f"safe_bo_suite: cannot read runs from {path} ({type(exc).__name__}: {exc}); "
                   "give files written by --json", file=sys.stderr)
@@ -740,6 +760,63 @@ def print_compare(before: str, after: str, markdown: bool = False, method: str =
         cells = [f"all {len(tot['fail'][0])}", "", f"{tot['found'][0]}/{tot['n'][0]} → {tot['found'][1]}/{tot['n'][1]}",
                  f"{np.mean(tot['fail'][0]):.2f} → {np.mean(tot['fail'][1]):.2f} (mean per problem)", "", ""]
         _print_cells(cells, markdown)
+
+
+PEERS = ("PIBU", "PIBU(l=w/10)", "BoTorch", "SafeOpt")
+
+
+def trade_off(runs: dict) -> tuple[list[str], dict]:
+    """Per method, over the problems every method ran: runs, optima found, failures per run, farthest failure."""
+    methods = sorted({m for _, m in runs})
+    shared = [p.name for p in PROBLEMS if all((p.name, m) in runs for m in methods)]
+    points = {}
+    for m in methods:
+        recs = [r for name in shared for r in runs[(name, m)].values()]
+        s = summarize(recs) if recs else None
+        points[m] = s
+    return shared, points
+
+
+def plot_trade_off(paths, out: str, budget: int = 40, markdown: bool = False) -> None:
+    """Optima found against failures per run, one point per method or labelled file (``--trade-off``)."""
+    shared, points = trade_off(load_runs(paths))
+    if not shared:
+        print("safe_bo_suite: no problem was run by every method given; nothing to plot", file=sys.stderr)
+        raise SystemExit(2)
+    order = sorted(points, key=lambda m: points[m]["fail"])
+    _print_head(["method", "found", "failures per run", "beyond (max)", "trials per run"], markdown,
+                f"Safe BO suite, {budget} trials, the {len(shared)} problems every method ran")
+    for m in order:
+        s = points[m]
+        _print_cells([m, f"{s['found']}/{s['n']}", f"{s['fail']:.2f}", f"{s['beyond']:.3f}", f"{s['trials']:.1f}"],
+                     markdown)
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import matplotlib.ticker
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.6))
+    colours = iter(plt.get_cmap("tab10").colors)
+    for m in order:
+        s = points[m]
+        marker = "s" if m in PEERS else ("*" if m == "CORL" else "o")
+        ax.scatter(s["fail"], 100.0 * s["rate"], s=140 if m == "CORL" else 48, marker=marker, color=next(colours),
+                   zorder=3, label=f"{m}: {s['found']}/{s['n']} found, {s['fail']:.2f} failures")
+    ax.legend(fontsize=7.5, loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False)
+    ax.set_xscale("log")
+    lo, hi = min(s["fail"] for s in points.values()), max(s["fail"] for s in points.values())
+    ticks = [v for v in (0.1, 0.2, 0.5, 1, 2, 3, 5, 10, 20, 30, 50) if lo / 1.5 <= v <= hi * 1.5]
+    ax.set_xticks(ticks, [f"{v:g}" for v in ticks])
+    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+    ax.set_xlabel("failures per run (mean, log scale)")
+    ax.set_ylabel("runs that found the optimum (%)")
+    ax.set_title(f"{len(shared)} problems x {points[order[0]]['n'] // len(shared)} starts, {budget} trials: "
+                 "up and to the left is better", fontsize=9)
+    ax.grid(alpha=0.3)
+    fig.savefig(out, dpi=120, bbox_inches="tight")
+    plt.close(fig)
+    print(f"\nwritten: {out}")
 
 
 def _table_title(budget: int) -> str:

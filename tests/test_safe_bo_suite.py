@@ -99,8 +99,32 @@ def test_unreadable_saved_runs_get_one_line_and_exit_2(suite, tmp_path, capsys, 
 
 
 def test_report_flags_that_cannot_work_together_are_refused(suite, capsys):
-    for args in (["--verdict"], ["--compare", "a.json", "b.json", "--table", "c.json"]):
+    for args in (["--verdict"], ["--trade-off", "x.png"], ["--compare", "a.json", "b.json", "--table", "c.json"]):
         with pytest.raises(SystemExit) as exc:
             suite.main(args)
         assert exc.value.code == 2
-    assert "--verdict reads saved runs" in capsys.readouterr().err
+    assert "--verdict and --trade-off read saved runs" in capsys.readouterr().err
+
+
+def test_trade_off_puts_methods_and_labelled_files_on_the_shared_problems(suite, tmp_path, capsys):
+    (tmp_path / "peer.json").write_text(json.dumps(_records("edge-1d", "BoTorch", [True, True], [9, 7])
+                                                   + _records("inside-2d", "BoTorch", [True, False], [5, 5])
+                                                   + _records("ring-edge-2d", "BoTorch", [True], [1])))
+    (tmp_path / "a.json").write_text(json.dumps(_records("edge-1d", "CORL", [True, False], [1, 0])
+                                                + _records("inside-2d", "CORL", [True, True], [2, 0])))
+    (tmp_path / "b.json").write_text(json.dumps(_records("edge-1d", "CORL", [True, True], [3, 3])
+                                                + _records("inside-2d", "CORL", [True, True], [3, 1])))
+    png = tmp_path / "t.png"
+    suite.main(["--table", str(tmp_path / "peer.json"), str(tmp_path / "a.json"), f"bold={tmp_path / 'b.json'}",
+                "--trade-off", str(png), "--markdown"])
+    out = capsys.readouterr().out
+    # ring-edge-2d: only BoTorch ran it, so it is left out; rows in order of failures
+    rows = [line for line in out.splitlines() if line.startswith("| ") and "---" not in line][1:]
+    assert rows == ["| CORL | 3/4 | 0.75 | 0.020 | 10.8 |", "| bold | 4/4 | 2.50 | 0.030 | 12.5 |",
+                    "| BoTorch | 3/4 | 6.50 | 0.090 | 16.5 |"]
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    (tmp_path / "c.json").write_text(json.dumps(_records("ring-edge-2d", "CORL", [True], [0])))
+    with pytest.raises(SystemExit) as exc:  # no problem that every method ran
+        suite.main(["--table", str(tmp_path / "peer.json"), f"x={tmp_path / 'a.json'}", str(tmp_path / "c.json"),
+                    "--trade-off", str(png)])
+    assert exc.value.code == 2 and "no problem was run by every method" in capsys.readouterr().err
