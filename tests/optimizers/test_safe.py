@@ -270,3 +270,31 @@ def test_far_ladder_without_a_far_look_stops_as_without_it():
                        [("none", SEIBConfig(far_reach=())), ("ladder", SEIBConfig(far_reach=(), far_ladder=(3.0,)))])
     np.testing.assert_array_equal(runs["ladder"].X_, runs["none"].X_)  # far_reach=(): never look far, ladder or not
     assert runs["ladder"].stop_reason is runs["none"].stop_reason
+
+
+def test_the_readme_s_cautious_and_bold_settings_reach_the_optimizer():
+    from dataclasses import replace
+
+    import corl
+    from corl.gp.fitting import ClassifierPriors, HyperPrior
+
+    box = corl.Bounds([0.0, 0.0], [2.0, 4.0])
+    base = corl.OptimizerSettings.for_box(box, fitted=True)
+    cautious = replace(base, seib=corl.SEIBConfig(band_rel=0.05))
+    bold = replace(base, classifier=replace(base.classifier,
+                   priors=ClassifierPriors(lengthscale=HyperPrior(0.15, 0.75, 0.03, 3.0))))
+    rollout = quadratic(C2, fail_above=0.8)
+    for settings, check in ((cautious, lambda o: o.seib.band_rel == 0.05),
+                            (bold, lambda o: o.models.classifier_config.priors.lengthscale.median == 0.15)):
+        opt = corl.make_optimizer("CORL", box, [0.6, 0.2], settings=settings, budget=6, seed=0)
+        assert check(opt)
+        opt.tell(np.array([0.6, 0.2]), rollout(np.array([0.6, 0.2])))
+        opt.tell(np.array([0.7, 0.3]), rollout(np.array([0.7, 0.3])))
+        opt.tell(np.array([0.5, 0.9]), rollout(np.array([0.5, 0.9])))  # a failure: g_S is fitted
+        x = opt.ask()
+        assert box.contains(x)
+    # the fitted g_S's unit-box length scale starts from the bold prior's median
+    opt = corl.make_optimizer("CORL", box, [0.6, 0.2], settings=bold, budget=6, seed=0)
+    opt.tell(np.array([0.6, 0.2]), rollout(np.array([0.6, 0.2])))
+    opt.done
+    np.testing.assert_allclose(np.asarray(opt._models[2].kernel.lengthscales) / box.width, 0.15)
