@@ -298,3 +298,51 @@ def test_the_readme_s_cautious_and_bold_settings_reach_the_optimizer():
     opt.tell(np.array([0.6, 0.2]), rollout(np.array([0.6, 0.2])))
     opt.done
     np.testing.assert_allclose(np.asarray(opt._models[2].kernel.lengthscales) / box.width, 0.15)
+
+
+def test_far_lengthscale_steps_further_only_in_the_far_look_and_crosses_the_valley():
+    from corl.acquisition.safe_ei import SEIBConfig
+    from corl.problem import Bounds
+
+    class Recorded(SafeBOOptimizer):
+        first_far = None
+
+        def _acquisition(self, **how):
+            if how.get("far") and self.first_far is None:
+                self.first_far = len(self.X_)
+            return super()._acquisition(**how)
+
+    bounds = Bounds(np.array([0.0]), np.array([10.0]))
+    runs = {}
+    for name, seib in (("default", SEIBConfig()), ("far", SEIBConfig(far_lengthscale=0.15))):
+        opt = Recorded(bounds, seib=seib, max_evals=40, seed=0)
+        opt.tell(np.array([2.5]), _wide_valley_rollout(np.array([2.5])))
+        _loop(opt, _wide_valley_rollout, 39)
+        runs[name] = opt
+    default, far = runs["default"], runs["far"]
+    assert default.best[1] < 0.71  # the default stops at the local peak by the start
+    n = far.first_far
+    assert n is not None and n == default.first_far
+    np.testing.assert_array_equal(far.X_[:n], default.X_[:n])  # the same run up to the first far look ...
+    assert abs(far.best[0][0] - 8.5) < 0.1 and far.best[1] > 0.99  # ... then across the valley
+    assert np.all(far.success_) and far.n_evals < 40 and far.stop_reason is StopReason.NO_IMPROVEMENT
+    # the far look's g_S: with every trial a success, the fit falls back to the far prior median
+    acq = far._acquisition(beyond=True, far=True)
+    np.testing.assert_allclose(np.asarray(acq.classifier.kernel.lengthscales) / bounds.width, 0.15)
+    np.testing.assert_allclose(np.asarray(far._acquisition().classifier.kernel.lengthscales) / bounds.width, 0.1)
+
+
+def test_far_lengthscale_is_checked_where_it_is_made():
+    from corl.acquisition.safe_ei import SEIBConfig
+    from corl.optimizers.bo import BOConfig
+    from corl.optimizers.gpconfig import ClassifierConfig
+
+    for bad in (0.0, -0.1, float("nan"), float("inf"), True, "0.2"):
+        with pytest.raises(InputError, match="far_lengthscale"):
+            SEIBConfig(far_lengthscale=bad)
+    hash(SEIBConfig(far_lengthscale=0.2))
+    with pytest.raises(InputError, match="prior bounds"):
+        SafeBOOptimizer(UNIT2, seib=SEIBConfig(far_lengthscale=5.0))
+    fixed = BOConfig(classifier=ClassifierConfig(lengthscale=0.1))
+    with pytest.raises(InputError, match="fixed hyperparameters"):
+        SafeBOOptimizer(UNIT2, fixed, seib=SEIBConfig(far_lengthscale=0.15))

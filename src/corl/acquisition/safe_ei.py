@@ -62,7 +62,11 @@ length-scale units): a failure at the other end of a narrow safe set says nothin
 the ray explores (in 1-D it closed the far look on the open side: bumps-1d stopped at a local
 peak after 8 trials). When even the far look has nothing, the optimizer may look far again with
 the wider UCB widths of ``far_ladder`` in turn (none by default): a run is unchanged up to where
-it would stop, and then spends more of its budget (docs/safe_bo_suite.md). Only band points count then:
+it would stop, and then spends more of its budget (docs/safe_bo_suite.md). With ``far_lengthscale``
+(none by default) the far look sees g_S refitted with that length-scale prior median, a fraction
+of the box (the fit's own: 0.1): its band lies further out, so each far step reaches further into
+untried space (more optima across valleys, a few more failures: docs/safe_bo_suite.md; the
+optimizer fits it, :class:`corl.optimizers.safe.SafeBOOptimizer`). Only band points count then:
 the inner EI had its turn in the first ask, and its maximum beside the best point would otherwise
 stop the search there (the maximiser lands on a sampled point). Looking far, the boundary term
 is weighted by the promise, ``w_b * V * (max_k UCB_R - R^+_mu - far_rel * scale) / scale``: the
@@ -125,6 +129,7 @@ class SEIBConfig:
     far_beta: float = 2.0  # looking far: UCB_R width on the ray (2.5 crosses more valleys, at a cost; see docs)
     far_behind: float = 0.25  # looking far: a failure at cos < -far_behind to the outward normal does not block (1: all do)
     far_ladder: tuple[float, ...] = ()  # before stopping: look far again with each of these UCB widths in turn
+    far_lengthscale: float | None = None  # looking far: g_S refitted with this length-scale prior median (box fraction)
 
     def __post_init__(self) -> None:
         if not 0.0 < self.p_band <= self.p_inner < 1.0:
@@ -148,6 +153,11 @@ class SEIBConfig:
                 for b in ladder):
             raise InputError(f"far_ladder needs a tuple of finite UCB widths >= 0 (or (): stop at once), got {ladder!r}")
         object.__setattr__(self, "far_ladder", tuple(float(b) for b in ladder))  # hashable, as a frozen config is
+        fl = self.far_lengthscale
+        if fl is not None and (isinstance(fl, bool) or not isinstance(fl, (int, float, np.floating))
+                               or not (np.isfinite(fl) and fl > 0)):
+            raise InputError(f"far_lengthscale is g_S's length-scale prior median for the far look, a fraction of the "
+                             f"box > 0 (None: the same g_S), got {fl!r}")
         if self.far_reach and min(self.far_reach) < 0:
             raise InputError(f"far_reach needs distances >= 0 (or none: never look far), got {self.far_reach}")
 

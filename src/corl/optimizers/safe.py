@@ -6,7 +6,8 @@ in unit-box units, :mod:`corl.gp.fitting`, warm-started from the previous ask), 
 (``max a < stop_value``) or the maximiser lands on a sampled point -- but only after asking again
 with the boundary gate looking beyond the band (``SEIB(beyond=True)``: may R be higher a length
 scale further out, where no failure is known?), then looking far (``SEIB(beyond=True, far=True)``:
-up to four length scales out, from band points well clear of every failure: across a valley of R)
+up to four length scales out, from band points well clear of every failure: across a valley of R;
+with ``SEIBConfig.far_lengthscale``, on a g_S refitted with that length-scale prior median)
 and, with few successes, with the gate open. It needs one known success
 (the start) before its first ask: a safe method never guesses a first point.
 """
@@ -19,6 +20,8 @@ import numpy as np
 
 from corl.acquisition import maximize
 from corl.acquisition.safe_ei import SEIB, SEIBConfig
+from corl.errors import InputError
+from corl.gp.fitting import fit_classifier
 from corl.optimizers.base import StopReason
 from corl.optimizers.bo import BOConfig, StopRule, _BayesOpt, _stop
 from corl.optimizers.gpconfig import FITTED_CLASSIFIER, FITTED_REGRESSION
@@ -102,7 +105,17 @@ class SafeBOOptimizer(_BayesOpt):
                  max_evals: int = 100, seed=None, start=None) -> None:
         super().__init__(bounds, config, max_evals=max_evals, seed=seed, name="CORL", start=start)
         self.seib = seib
+        if seib.far_lengthscale is not None:
+            prior = config.classifier.priors.lengthscale
+            if not config.classifier.fit_hyperparameters:
+                raise InputError("SEIBConfig.far_lengthscale is a prior median of g_S's fit; this optimizer's g_S has "
+                                 "fixed hyperparameters (give fitted ones, e.g. OptimizerSettings.for_box(box, "
+                                 "fitted=True), or leave far_lengthscale None)")
+            if not prior.low <= seib.far_lengthscale <= prior.high:
+                raise InputError(f"SEIBConfig.far_lengthscale must lie within g_S's length-scale prior bounds "
+                                 f"[{prior.low}, {prior.high}] (fractions of the box), got {seib.far_lengthscale}")
         self._models = None
+        self._far_classifier = None  # (points, g_S refitted for the far look) with far_lengthscale
         self._scale = tuple(float(w) for w in bounds.width) if config.distance_scale is None else config.distance_scale
 
     def _propose(self) -> np.ndarray | StopReason:
@@ -149,6 +162,17 @@ class SafeBOOptimizer(_BayesOpt):
             self._models = (len(self.X_), None if regression is None else _Reuse(regression), classifier)
         regression, classifier = self._models[1:]
         best = float(np.max(self.returns_[ok]))
+        if far and self.seib.far_lengthscale is not None:
+            classifier = self._far_look_classifier()
         seib = self.seib if far_beta is None else replace(self.seib, far_beta=far_beta)
         return SEIB(regression, classifier, best, return_scale(self.returns_[ok]), seib, gated=gated,
                     beyond=beyond, far=far, box=(self.bounds.lower, self.bounds.upper))
+
+    def _far_look_classifier(self):
+        """g_S fitted with the length-scale prior median ``far_lengthscale`` (from scratch, once per ask)."""
+        if self._far_classifier is None or self._far_classifier[0] != len(self.X_):
+            cfg = self.models.classifier_config
+            priors = replace(cfg.priors, lengthscale=replace(cfg.priors.lengthscale, median=self.seib.far_lengthscale))
+            fit = fit_classifier(self.X_, self.success_, self.bounds, cfg.prior_mean, priors)
+            self._far_classifier = (len(self.X_), _Reuse(fit.model))
+        return self._far_classifier[1]
