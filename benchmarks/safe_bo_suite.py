@@ -27,6 +27,7 @@ BoTorch in this run.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
 import subprocess
@@ -797,11 +798,12 @@ def plot_trade_off(paths, out: str, budget: int = 40, markdown: bool = False) ->
     import matplotlib.ticker
 
     fig, ax = plt.subplots(figsize=(6.4, 4.6))
-    colours = iter(plt.get_cmap("tab10").colors)
+    colours = itertools.cycle(plt.get_cmap("tab10" if len(order) <= 10 else "tab20").colors)
     for m in order:
         s = points[m]
         marker = "s" if m in PEERS else ("*" if m == "CORL" else "o")
-        ax.scatter(s["fail"], 100.0 * s["rate"], s=140 if m == "CORL" else 48, marker=marker, color=next(colours),
+        ax.scatter(s["fail"], 100.0 * s["rate"], s=160 if m == "CORL" else 48, marker=marker,
+                   color="black" if m == "CORL" else next(colours),
                    zorder=3, label=f"{m}: {s['found']}/{s['n']} found, {s['fail']:.2f} failures")
     ax.legend(fontsize=7.5, loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False)
     ax.set_xscale("log")
