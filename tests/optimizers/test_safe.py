@@ -283,9 +283,11 @@ def test_the_readme_s_cautious_and_bold_settings_reach_the_optimizer():
     cautious = replace(base, seib=corl.SEIBConfig(band_rel=0.05))
     bold = replace(base, classifier=replace(base.classifier,
                    priors=ClassifierPriors(lengthscale=HyperPrior(0.15, 0.75, 0.03, 3.0))))
+    far = replace(base, seib=corl.SEIBConfig(far_lengthscale=0.15))
     rollout = quadratic(C2, fail_above=0.8)
     for settings, check in ((cautious, lambda o: o.seib.band_rel == 0.05),
-                            (bold, lambda o: o.models.classifier_config.priors.lengthscale.median == 0.15)):
+                            (bold, lambda o: o.models.classifier_config.priors.lengthscale.median == 0.15),
+                            (far, lambda o: o.seib.far_lengthscale == 0.15)):
         opt = corl.make_optimizer("CORL", box, [0.6, 0.2], settings=settings, budget=6, seed=0)
         assert check(opt)
         opt.tell(np.array([0.6, 0.2]), rollout(np.array([0.6, 0.2])))
