@@ -41,6 +41,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
+from corl.optimizers.base import StopReason  # noqa: E402
 from corl.optimizers.bo import BOConfig, PIBUOptimizer  # noqa: E402
 from corl.optimizers.gpconfig import FITTED_CLASSIFIER, FITTED_REGRESSION, ClassifierConfig, RegressionConfig  # noqa: E402
 from corl.optimizers.safe import SafeBOOptimizer  # noqa: E402
@@ -490,7 +491,8 @@ def speed(n: int = 100, seed: int = 0) -> dict:
     CORL: the n-th point is told and the next decision made (``done``): both GPs fitted,
     warm-started from the fit at n - 1 points as in a run, and SEIB maximised with every look the
     decision needs (``CORL_stops``: it decided to stop, which asks the looks beyond the band and
-    far too; the three repeats must decide alike, else ``RuntimeError``). BoTorch: both GPs fitted and ``optimize_acqf``.
+    far too). The three repeats must decide alike (the same stop, or the same next point), else
+    ``RuntimeError``. BoTorch: both GPs fitted and ``optimize_acqf``.
     """
     p = PROBLEMS[1]
     rng = np.random.default_rng(seed)
@@ -508,11 +510,11 @@ def speed(n: int = 100, seed: int = 0) -> dict:
         opt.tell(X[-1], rollout(p, X[-1]))  # not asked, so the decision is made again
         opt.done
         times.append(time.perf_counter() - t0)
-        stops.append(opt.stop_reason)
+        stops.append(opt.stop_reason or tuple(float(v) for v in opt.ask()))  # after the clock: the decision made
     if len(set(stops)) != 1:  # the same data and seed: a timing over different work would mean nothing
         raise RuntimeError(f"the three timed CORL decisions differ ({stops}); the timing is not comparable")
     out["CORL"] = 1e3 * min(times)
-    out["CORL_stops"] = stops[0] is not None
+    out["CORL_stops"] = isinstance(stops[0], StopReason)
     try:
         import torch
 
@@ -615,22 +617,31 @@ def main(argv=None) -> None:
 
 
 def _labelled(arg) -> tuple[str | None, str]:
-    """``LABEL=FILE`` -> (LABEL, FILE); a plain FILE (or one whose name holds "=") -> (None, FILE)."""
+    """``LABEL=FILE`` -> (LABEL, FILE); a FILE that exists (its name may hold "=") -> (None, FILE).
+
+    The label ends at the first "=" after which an existing file is named; when none is, the
+    whole argument is taken as a file name (and reported as one that cannot be read).
+    """
     arg = str(arg)
-    label, eq, path = arg.partition("=")
-    if not eq or not label or Path(arg).exists():
+    if Path(arg).exists():
         return None, arg
-    return label, path
+    for i, ch in enumerate(arg):
+        if ch == "=" and i > 0 and Path(arg[i + 1:]).exists():
+            return arg[:i], arg[i + 1:]
+    return None, arg
 
 
 def load_runs(paths) -> dict:
     """``{(problem, method): {start: record}}`` from ``--json`` files, merged (a start saved twice: the last).
 
     A path given as ``LABEL=FILE`` names every run in that file ``LABEL`` instead of its method (two
-    settings of CORL side by side).
+    settings of CORL side by side): such a file must hold one method, and no other file may hold a
+    method of that name (runs would be mixed silently).
     """
     runs: dict = {}
     names = {p.name for p in PROBLEMS}
+    labelled: dict[str, str] = {}  # label -> its file
+    plain: dict[str, str] = {}  # method of an unlabelled file -> one such file
     for arg in paths:
         label, path = _labelled(arg)
         try:
@@ -643,6 +654,18 @@ def load_runs(paths) -> dict:
                     raise KeyError(f"a run without {', '.join(missing)}")
                 if rec["problem"] not in names:
                     raise KeyError(f"unknown problem {rec['problem']!r}")
+            methods = {rec["method"] for rec in recs}
+            if label is not None and len(methods) > 1:
+                raise ValueError(f"label {label!r} given to a file of {len(methods)} methods ({', '.join(sorted(methods))}); "
+                                 "label a file of one method")
+            for m in ({label} if label is not None else methods):
+                clash = plain.get(m) if label is not None else labelled.get(m)
+                if clash is None and label is not None and labelled.get(m, path) != path:
+                    clash = labelled[m]
+                if clash is not None:
+                    raise ValueError(f"{m!r} names runs of {clash} too; give another label")
+                (labelled if label is not None else plain).setdefault(m, path)
+            for rec in recs:
                 runs.setdefault((rec["problem"], label or rec["method"]), {})[rec["start"]] = rec
         except (OSError, ValueError, TypeError, KeyError) as exc:
             print(f"safe_bo_suite: cannot read runs from {path} ({type(exc).__name__}: {exc}); "
@@ -806,12 +829,13 @@ def plot_trade_off(paths, out: str, budget: int = 40, markdown: bool = False) ->
                    color="black" if m == "CORL" else next(colours),
                    zorder=3, label=f"{m}: {s['found']}/{s['n']} found, {s['fail']:.2f} failures")
     ax.legend(fontsize=7.5, loc="center left", bbox_to_anchor=(1.01, 0.5), frameon=False)
-    ax.set_xscale("log")
     lo, hi = min(s["fail"] for s in points.values()), max(s["fail"] for s in points.values())
-    ticks = [v for v in (0.1, 0.2, 0.5, 1, 2, 3, 5, 10, 20, 30, 50) if lo / 1.5 <= v <= hi * 1.5]
-    ax.set_xticks(ticks, [f"{v:g}" for v in ticks])
-    ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
-    ax.set_xlabel("failures per run (mean, log scale)")
+    if lo > 0:  # a log axis spreads the safe methods apart; a method that never fails needs a linear one
+        ax.set_xscale("log")
+        ticks = [v for v in (0.1, 0.2, 0.5, 1, 2, 3, 5, 10, 20, 30, 50) if lo / 1.5 <= v <= hi * 1.5]
+        ax.set_xticks(ticks, [f"{v:g}" for v in ticks])
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+    ax.set_xlabel("failures per run (mean" + (", log scale)" if lo > 0 else ")"))
     ax.set_ylabel("runs that found the optimum (%)")
     ax.set_title(f"{len(shared)} problems x {points[order[0]]['n'] // len(shared)} starts, {budget} trials: "
                  "up and to the left is better", fontsize=9)

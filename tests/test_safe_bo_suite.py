@@ -128,3 +128,60 @@ def test_trade_off_puts_methods_and_labelled_files_on_the_shared_problems(suite,
         suite.main(["--table", str(tmp_path / "peer.json"), f"x={tmp_path / 'a.json'}", str(tmp_path / "c.json"),
                     "--trade-off", str(png)])
     assert exc.value.code == 2 and "no problem was run by every method" in capsys.readouterr().err
+
+
+def test_a_labelled_file_must_hold_one_method_and_a_label_must_not_clash(suite, tmp_path, capsys):
+    (tmp_path / "peers.json").write_text(json.dumps(_records("edge-1d", "BoTorch", [True], [9])
+                                                    + _records("edge-1d", "SafeOpt", [False], [0])))
+    (tmp_path / "corl.json").write_text(json.dumps(_records("edge-1d", "CORL", [True], [1])))
+    (tmp_path / "other.json").write_text(json.dumps(_records("edge-1d", "CORL", [False], [2])))
+    bad = ([f"peers={tmp_path / 'peers.json'}"],  # two methods under one label: BoTorch would vanish
+           [str(tmp_path / "corl.json"), f"CORL={tmp_path / 'other.json'}"],  # a label that is a method elsewhere
+           [f"CORL={tmp_path / 'other.json'}", str(tmp_path / "corl.json")],
+           [f"x={tmp_path / 'corl.json'}", f"x={tmp_path / 'other.json'}"])  # one label, two files
+    for args in bad:
+        with pytest.raises(SystemExit) as exc:
+            suite.load_runs(args)
+        assert exc.value.code == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and ("label" in err[0])
+    runs = suite.load_runs([str(tmp_path / "corl.json"), f"wide={tmp_path / 'other.json'}"])
+    assert set(runs) == {("edge-1d", "CORL"), ("edge-1d", "wide")}
+
+
+def test_a_file_name_may_hold_an_equals_sign(suite, tmp_path):
+    odd = tmp_path / "k=v"
+    odd.mkdir()
+    (odd / "runs.json").write_text(json.dumps(_records("edge-1d", "CORL", [True], [1])))
+    assert suite._labelled(odd / "runs.json") == (None, str(odd / "runs.json"))
+    assert suite._labelled(f"a=b={odd / 'runs.json'}") == ("a=b", str(odd / "runs.json"))
+    assert suite._labelled(f"x={odd / 'runs.json'}") == ("x", str(odd / "runs.json"))
+    assert suite._labelled(str(tmp_path / "no=such.json")) == (None, str(tmp_path / "no=such.json"))  # named whole
+
+
+def test_a_method_that_never_fails_stays_on_the_trade_off_plot(suite, tmp_path, capsys):
+    (tmp_path / "runs.json").write_text(json.dumps(_records("edge-1d", "CORL", [True], [1])
+                                                   + _records("edge-1d", "SafeOpt", [False], [0])))
+    png = tmp_path / "t.png"
+    suite.main(["--table", str(tmp_path / "runs.json"), "--trade-off", str(png)])
+    out = capsys.readouterr().out
+    assert "SafeOpt  0/1  0.00" in out and png.exists()
+
+
+def test_speed_times_alike_decisions_only(suite, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "torch", None)  # CORL's side only: BoTorch is an optional extra
+    sp = suite.speed(n=12)
+    assert sp["CORL"] > 0 and isinstance(sp["CORL_stops"], bool) and sp["BoTorch"] is None
+
+    class Drifting(suite.SafeBOOptimizer):  # each instance decides on another point
+        made = 0
+
+        def _propose(self):
+            Drifting.made += 1
+            return self.bounds.lower + 0.01 * Drifting.made * self.bounds.width
+
+    monkeypatch.setattr(suite, "SafeBOOptimizer", Drifting)
+    with pytest.raises(RuntimeError, match="differ"):
+        suite.speed(n=12)

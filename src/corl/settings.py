@@ -65,6 +65,7 @@ class MethodSettings:
             raise InputError(f"MethodSettings.corl must be a corl.settings.CORLConfig, got {type(self.corl).__name__}")
         if not isinstance(self.seib, SEIBConfig):
             raise InputError(f"MethodSettings.seib must be a corl.SEIBConfig, got {type(self.seib).__name__}")
+        self.seib.check_classifier(self.classifier)  # far_lengthscale needs a fitted g_S: refused here, before a trial
         if isinstance(self.direct_budget, bool) or int(self.direct_budget) != self.direct_budget or self.direct_budget < 2:
             raise InputError(f"direct_budget (trials of a method over w, the demonstration included) must be an "
                              f"integer >= 2, got {self.direct_budget!r}")

@@ -82,9 +82,10 @@ def test_band_rel_raises_the_band_point_gate_s_margin_and_nothing_else():
     np.testing.assert_array_equal(strict["value"][inner], parts["value"][inner])  # the inner EI is untouched
     shut = SEIB(reg, clf, best_return=3.0, scale=1.1, config=SEIBConfig(band_rel=float("inf"))).parts(grid)
     assert not np.any(shut["value"][shut["band"]])  # inf: the edge is never mapped at the band points
-    for bad in (-0.1, float("nan")):
+    for bad in (-0.1, float("nan"), None, "0.05", True):
         with pytest.raises(InputError, match="band_rel"):
             SEIBConfig(band_rel=bad)
+    assert SEIBConfig(band_rel=np.int64(1)).band_rel == 1  # a NumPy number is a number
 
 
 def test_without_a_return_model_only_the_boundary_acts():

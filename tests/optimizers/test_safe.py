@@ -6,6 +6,7 @@ import pytest
 from blackbox_loop import C2, UNIT2, quadratic
 from corl.errors import InputError, StateError
 from corl.optimizers.base import StopReason
+from corl.optimizers.gpconfig import ClassifierConfig
 from corl.optimizers.safe import SafeBOOptimizer, return_scale
 from corl.problem import Outcome
 
@@ -337,7 +338,6 @@ def test_far_lengthscale_steps_further_only_in_the_far_look_and_crosses_the_vall
 def test_far_lengthscale_is_checked_where_it_is_made():
     from corl.acquisition.safe_ei import SEIBConfig
     from corl.optimizers.bo import BOConfig
-    from corl.optimizers.gpconfig import ClassifierConfig
 
     for bad in (0.0, -0.1, float("nan"), float("inf"), True, "0.2"):
         with pytest.raises(InputError, match="far_lengthscale"):
@@ -346,5 +346,30 @@ def test_far_lengthscale_is_checked_where_it_is_made():
     with pytest.raises(InputError, match="prior bounds"):
         SafeBOOptimizer(UNIT2, seib=SEIBConfig(far_lengthscale=5.0))
     fixed = BOConfig(classifier=ClassifierConfig(lengthscale=0.1))
-    with pytest.raises(InputError, match="fixed hyperparameters"):
+    with pytest.raises(InputError, match="fixed"):
         SafeBOOptimizer(UNIT2, fixed, seib=SEIBConfig(far_lengthscale=0.15))
+    assert SEIBConfig(far_lengthscale=np.float32(0.2)).far_lengthscale == pytest.approx(0.2)
+    SEIBConfig(far_lengthscale=np.int64(1))  # a NumPy integer is a number too
+
+
+def test_far_lengthscale_with_fixed_gp_values_is_refused_where_the_settings_are_made():
+    """Before a trial: a task's method_settings() or OptimizerSettings, not the first far look."""
+    from dataclasses import replace
+
+    import corl
+    from corl.acquisition.safe_ei import SEIBConfig
+    from corl.settings import MethodSettings
+
+    far = SEIBConfig(far_lengthscale=0.15)
+    with pytest.raises(InputError, match="fixed"):
+        MethodSettings(seib=far)  # the paper's fixed values by default
+    with pytest.raises(InputError, match="fixed"):
+        replace(corl.OptimizerSettings.for_box(UNIT2), seib=far)
+    with pytest.raises(InputError, match="prior bounds"):
+        replace(corl.OptimizerSettings.for_box(UNIT2, fitted=True), seib=SEIBConfig(far_lengthscale=4.0))
+    replace(corl.methods.USER_SETTINGS, seib=far)  # fitted: fine
+    opt = corl.make_optimizer("CORL", UNIT2, [0.5, 0.5], budget=5)
+    opt.seib = far  # replaced after construction: still refused, at the far look
+    opt.models.classifier_config = ClassifierConfig(lengthscale=0.1)
+    with pytest.raises(InputError, match="fixed"):
+        opt._far_look_classifier()

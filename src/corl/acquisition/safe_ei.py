@@ -17,7 +17,7 @@ default: ``xi_b = xi``; larger, the edge is mapped only where the gain could be 
 failures and fewer optima found: docs/safe_bo_suite.md). Consequences:
 
 * the boundary is explored only where the return model leaves room to beat R^+ by the margin
-  (``UCB_R > R^+ + xi``): an edge where R is low is never mapped;
+  (``UCB_R > R^+ + xi_b``): an edge where R is low is never mapped;
 * EI with a margin xi (a fraction of the spread of observed returns) is ~0 beside the best
   point, so the method moves on instead of stalling (PI's failure mode) and stops when
   ``max a < stop_value`` -- nothing left that is both plausible and safe;
@@ -66,7 +66,9 @@ it would stop, and then spends more of its budget (docs/safe_bo_suite.md). With 
 (none by default) the far look sees g_S refitted with that length-scale prior median, a fraction
 of the box (the fit's own: 0.1): its band lies further out, so each far step reaches further into
 untried space (more optima across valleys, a few more failures: docs/safe_bo_suite.md; the
-optimizer fits it, :class:`corl.optimizers.safe.SafeBOOptimizer`). Only band points count then:
+optimizer fits it, :class:`corl.optimizers.safe.SafeBOOptimizer`). The far look's distances
+(``far_open``, the ray's length scales, ``far_behind``'s scaling) are then measured in that g_S's
+longer length scales too. Only band points count then:
 the inner EI had its turn in the first ask, and its maximum beside the best point would otherwise
 stop the search there (the maximiser lands on a sampled point). Looking far, the boundary term
 is weighted by the promise, ``w_b * V * (max_k UCB_R - R^+_mu - far_rel * scale) / scale``: the
@@ -132,6 +134,11 @@ class SEIBConfig:
     far_lengthscale: float | None = None  # looking far: g_S refitted with this length-scale prior median (box fraction)
 
     def __post_init__(self) -> None:
+        names = ("p_inner", "p_band", "xi_rel", "band_rel", "beta", "boundary_weight", "stop_value", "trust_per_dim",
+                 "beyond_rel", "ray_open", "far_rel", "far_open", "far_beta", "far_behind")
+        wrong = [f"{n}={getattr(self, n)!r}" for n in names if not _is_number(getattr(self, n))]
+        if wrong:
+            raise InputError(f"SEIBConfig settings must be numbers, got {', '.join(wrong)}")
         if not 0.0 < self.p_band <= self.p_inner < 1.0:
             raise InputError(f"SEIB needs 0 < p_band <= p_inner < 1, got {self.p_band}, {self.p_inner}")
         values = (self.xi_rel, self.band_rel, self.beta, self.boundary_weight, self.stop_value, self.trust_per_dim,
@@ -144,22 +151,39 @@ class SEIBConfig:
             raise InputError(f"beta and far_beta (UCB widths) must be finite, got {self.beta}, {self.far_beta}")
         if len(self.reach) == 0 or min(self.reach) < 0:
             raise InputError(f"reach needs at least one distance, all >= 0, got {self.reach}")
-        if isinstance(self.far_behind, bool) or not isinstance(self.far_behind, (int, float, np.floating)) \
-                or not -1.0 <= self.far_behind <= 1.0:  # NaN fails too
+        if not -1.0 <= self.far_behind <= 1.0:  # NaN fails too
             raise InputError(f"far_behind is a cosine, in [-1, 1] (1: every failure blocks), got {self.far_behind!r}")
         ladder = self.far_ladder
-        if not isinstance(ladder, (tuple, list)) or any(
-                isinstance(b, bool) or not isinstance(b, (int, float, np.floating)) or not (np.isfinite(b) and b >= 0)
-                for b in ladder):
+        if not isinstance(ladder, (tuple, list)) or any(not _is_number(b) or not (np.isfinite(b) and b >= 0)
+                                                        for b in ladder):
             raise InputError(f"far_ladder needs a tuple of finite UCB widths >= 0 (or (): stop at once), got {ladder!r}")
         object.__setattr__(self, "far_ladder", tuple(float(b) for b in ladder))  # hashable, as a frozen config is
         fl = self.far_lengthscale
-        if fl is not None and (isinstance(fl, bool) or not isinstance(fl, (int, float, np.floating))
-                               or not (np.isfinite(fl) and fl > 0)):
+        if fl is not None and not (_is_number(fl) and np.isfinite(fl) and fl > 0):
             raise InputError(f"far_lengthscale is g_S's length-scale prior median for the far look, a fraction of the "
                              f"box > 0 (None: the same g_S), got {fl!r}")
         if self.far_reach and min(self.far_reach) < 0:
             raise InputError(f"far_reach needs distances >= 0 (or none: never look far), got {self.far_reach}")
+
+    def check_classifier(self, classifier) -> None:
+        """Refuse ``far_lengthscale`` where it cannot act: ``classifier`` (a ``ClassifierConfig``) must be
+        fitted, with the median inside its length-scale prior's bounds. Called where settings are made."""
+        fl = self.far_lengthscale
+        if fl is None:
+            return
+        if not getattr(classifier, "fit_hyperparameters", False):
+            raise InputError("SEIBConfig.far_lengthscale is a prior median of g_S's fit, but g_S's hyperparameters are "
+                             "fixed here: give fitted ones (e.g. OptimizerSettings.for_box(box, fitted=True), or "
+                             "corl.methods.USER_SETTINGS in a task's method_settings()) or leave far_lengthscale None")
+        prior = classifier.priors.lengthscale
+        if not prior.low <= fl <= prior.high:
+            raise InputError(f"SEIBConfig.far_lengthscale must lie within g_S's length-scale prior bounds "
+                             f"[{prior.low}, {prior.high}] (fractions of the box), got {fl}")
+
+
+def _is_number(v) -> bool:
+    """A real number (Python or NumPy), not a bool."""
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
 
 
 class SEIB:
@@ -173,7 +197,7 @@ class SEIB:
     best_return : R^+.
     scale : spread of the returns (> 0).
     config : :class:`SEIBConfig`.
-    gated : gate the boundary term by ``UCB_R > R^+ + xi``; ``False`` gives the ungated boundary
+    gated : gate the boundary term by ``UCB_R > R^+ + xi_b``; ``False`` gives the ungated boundary
         term (PIBU's, weighted by ``w_b``), which the optimizer falls back to when the gated
         acquisition has nothing left: the return model may be wrong about an unexplored edge.
     beyond : gate a band point by the return just beyond it instead (:meth:`reach_ucb`):

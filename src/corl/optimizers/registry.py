@@ -80,6 +80,7 @@ class OptimizerSettings:
             raise InputError("stop_distance and step_distance must be >= 0")
         if not isinstance(self.seib, SEIBConfig):
             raise InputError(f"OptimizerSettings.seib must be a corl.SEIBConfig, got {type(self.seib).__name__}")
+        self.seib.check_classifier(self.classifier)  # far_lengthscale needs a fitted g_S: refused here, before a trial
 
     @classmethod
     def for_box(cls, bounds: Bounds, *, fitted: bool = False) -> "OptimizerSettings":

@@ -20,7 +20,6 @@ import numpy as np
 
 from corl.acquisition import maximize
 from corl.acquisition.safe_ei import SEIB, SEIBConfig
-from corl.errors import InputError
 from corl.gp.fitting import fit_classifier
 from corl.optimizers.base import StopReason
 from corl.optimizers.bo import BOConfig, StopRule, _BayesOpt, _stop
@@ -105,15 +104,7 @@ class SafeBOOptimizer(_BayesOpt):
                  max_evals: int = 100, seed=None, start=None) -> None:
         super().__init__(bounds, config, max_evals=max_evals, seed=seed, name="CORL", start=start)
         self.seib = seib
-        if seib.far_lengthscale is not None:
-            prior = config.classifier.priors.lengthscale
-            if not config.classifier.fit_hyperparameters:
-                raise InputError("SEIBConfig.far_lengthscale is a prior median of g_S's fit; this optimizer's g_S has "
-                                 "fixed hyperparameters (give fitted ones, e.g. OptimizerSettings.for_box(box, "
-                                 "fitted=True), or leave far_lengthscale None)")
-            if not prior.low <= seib.far_lengthscale <= prior.high:
-                raise InputError(f"SEIBConfig.far_lengthscale must lie within g_S's length-scale prior bounds "
-                                 f"[{prior.low}, {prior.high}] (fractions of the box), got {seib.far_lengthscale}")
+        seib.check_classifier(config.classifier)
         self._models = None
         self._far_classifier = None  # (points, g_S refitted for the far look) with far_lengthscale
         self._scale = tuple(float(w) for w in bounds.width) if config.distance_scale is None else config.distance_scale
@@ -170,9 +161,11 @@ class SafeBOOptimizer(_BayesOpt):
 
     def _far_look_classifier(self):
         """g_S fitted with the length-scale prior median ``far_lengthscale`` (from scratch, once per ask)."""
-        if self._far_classifier is None or self._far_classifier[0] != len(self.X_):
+        key = (len(self.X_), self.seib.far_lengthscale)
+        if self._far_classifier is None or self._far_classifier[0] != key:
             cfg = self.models.classifier_config
+            self.seib.check_classifier(cfg)  # also when ``seib`` was replaced after construction
             priors = replace(cfg.priors, lengthscale=replace(cfg.priors.lengthscale, median=self.seib.far_lengthscale))
             fit = fit_classifier(self.X_, self.success_, self.bounds, cfg.prior_mean, priors)
-            self._far_classifier = (len(self.X_), _Reuse(fit.model))
+            self._far_classifier = (key, _Reuse(fit.model))
         return self._far_classifier[1]
