@@ -47,6 +47,9 @@ from corl.optimizers.gpconfig import FITTED_CLASSIFIER, FITTED_REGRESSION, Class
 from corl.optimizers.safe import SafeBOOptimizer  # noqa: E402
 from corl.problem import Bounds, Outcome  # noqa: E402
 
+CORL_METHODS = ("CORL", "PIBU", "PIBU(l=w/10)")  # corl's own, run at --starts
+PEERS = ("PIBU", "PIBU(l=w/10)", "BoTorch", "SafeOpt")  # what CORL is compared with
+
 
 # ---------------------------------------------------------------------------------------------
 # Problems: S and R vectorised over (s, m) arrays in theta units
@@ -500,7 +503,7 @@ def speed(n: int = 100, seed: int = 0) -> dict:
     s = p.safe(X)
     r = np.where(s, p.ret(X), np.nan)
     out = {}
-    times, stops = [], []
+    times, decisions = [], []
     for _ in range(3):
         opt = SafeBOOptimizer(p.bounds, max_evals=10 * n, seed=seed)
         for x in X[:-1]:
@@ -510,11 +513,11 @@ def speed(n: int = 100, seed: int = 0) -> dict:
         opt.tell(X[-1], rollout(p, X[-1]))  # not asked, so the decision is made again
         opt.done
         times.append(time.perf_counter() - t0)
-        stops.append(opt.stop_reason or tuple(float(v) for v in opt.ask()))  # after the clock: the decision made
-    if len(set(stops)) != 1:  # the same data and seed: a timing over different work would mean nothing
-        raise RuntimeError(f"the three timed CORL decisions differ ({stops}); the timing is not comparable")
+        decisions.append(opt.stop_reason or tuple(float(v) for v in opt.ask()))  # after the clock
+    if len(set(decisions)) != 1:  # the same data and seed: a timing over different work would mean nothing
+        raise RuntimeError(f"the three timed CORL decisions differ ({decisions}); the timing is not comparable")
     out["CORL"] = 1e3 * min(times)
-    out["CORL_stops"] = isinstance(stops[0], StopReason)
+    out["CORL_stops"] = isinstance(decisions[0], StopReason)
     try:
         import torch
 
@@ -592,7 +595,7 @@ def main(argv=None) -> None:
     for p in problems:
         truth = truth_of(p)
         for name in methods:
-            k = args.starts if name in ("CORL", "PIBU", "PIBU(l=w/10)") or args.peer_starts is None else args.peer_starts
+            k = args.starts if name in CORL_METHODS or args.peer_starts is None else args.peer_starts
             runs, ms = [], []
             first, last = (0, k) if args.start_range is None else map(int, args.start_range.split(":"))
             for i, x0 in list(enumerate(starts_of(p, max(k, last), args.seed)))[first:last]:
@@ -640,8 +643,7 @@ def load_runs(paths) -> dict:
     """
     runs: dict = {}
     names = {p.name for p in PROBLEMS}
-    labelled: dict[str, str] = {}  # label -> its file
-    plain: dict[str, str] = {}  # method of an unlabelled file -> one such file
+    source: dict[str, tuple[bool, str]] = {}  # name -> (a label?, the first file naming it)
     for arg in paths:
         label, path = _labelled(arg)
         try:
@@ -658,13 +660,11 @@ def load_runs(paths) -> dict:
             if label is not None and len(methods) > 1:
                 raise ValueError(f"label {label!r} given to a file of {len(methods)} methods ({', '.join(sorted(methods))}); "
                                  "label a file of one method")
-            for m in ({label} if label is not None else methods):
-                clash = plain.get(m) if label is not None else labelled.get(m)
-                if clash is None and label is not None and labelled.get(m, path) != path:
-                    clash = labelled[m]
-                if clash is not None:
-                    raise ValueError(f"{m!r} names runs of {clash} too; give another label")
-                (labelled if label is not None else plain).setdefault(m, path)
+            here = (label is not None, path)
+            for m in ({label} if label is not None else methods):  # unlabelled files of one method merge
+                first = source.setdefault(m, here)
+                if first != here and (here[0] or first[0]):
+                    raise ValueError(f"{m!r} names runs of {first[1]} too; give another label")
             for rec in recs:
                 runs.setdefault((rec["problem"], label or rec["method"]), {})[rec["start"]] = rec
         except (OSError, ValueError, TypeError, KeyError) as exc:
@@ -706,7 +706,7 @@ def print_table(paths, budget: int = 40, markdown: bool = False) -> None:
     by_name = {p.name: p for p in PROBLEMS}
     _print_head(["problem", "set", "method", "found", "failures", "beyond", "trials", "ms/it"], markdown,
                 _table_title(budget))
-    methods = ["CORL", "PIBU", "PIBU(l=w/10)", "BoTorch", "SafeOpt"]
+    methods = ["CORL", *PEERS]
     rank = {m: k for k, m in enumerate(methods)}
     for prob, name in sorted(runs, key=lambda k: (order.get(k[0], len(order)), rank.get(k[1], len(rank)), k[1])):
         recs = list(runs[(prob, name)].values())
@@ -786,19 +786,13 @@ def print_compare(before: str, after: str, markdown: bool = False, method: str =
         _print_cells(cells, markdown)
 
 
-PEERS = ("PIBU", "PIBU(l=w/10)", "BoTorch", "SafeOpt")
-
-
 def trade_off(runs: dict) -> tuple[list[str], dict]:
-    """Per method, over the problems every method ran: runs, optima found, failures per run, farthest failure."""
+    """The problems every method ran, and per method :func:`summarize` over them (none if no problem is shared)."""
     methods = sorted({m for _, m in runs})
     shared = [p.name for p in PROBLEMS if all((p.name, m) in runs for m in methods)]
-    points = {}
-    for m in methods:
-        recs = [r for name in shared for r in runs[(name, m)].values()]
-        s = summarize(recs) if recs else None
-        points[m] = s
-    return shared, points
+    if not shared:
+        return shared, {}
+    return shared, {m: summarize(r for name in shared for r in runs[(name, m)].values()) for m in methods}
 
 
 def plot_trade_off(paths, out: str, budget: int = 40, markdown: bool = False) -> None:
