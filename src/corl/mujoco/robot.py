@@ -189,9 +189,17 @@ def load_spec(source, *, moving: Sequence[str] | None = None, lock: Sequence[str
             raise InputError(f"joint {name!r} is not in the MJCF; its joints are {names}")
     keep = set(moving) if moving is not None else set(names) - set(lock)
     for joint in list(spec.joints):
-        if joint.name not in keep and joint.type != mujoco.mjtJoint.mjJNT_FREE:
-            joint.delete()
+        if joint.name not in keep and int(joint.type) != int(mujoco.mjtJoint.mjJNT_FREE):
+            _delete(spec, joint)
     return spec
+
+
+def _delete(spec, element) -> None:
+    """Remove ``element`` from ``spec``: ``spec.delete(element)`` from mujoco 3.4 on, ``element.delete()`` before."""
+    if hasattr(spec, "delete"):
+        spec.delete(element)
+    else:  # mujoco 3.3
+        element.delete()
 
 
 def example_robot_dir(name: str) -> Path:
@@ -243,7 +251,8 @@ class Robot:
             k = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
             if k < 0:
                 raise InputError(f"joint {name!r} is not in the model (was it locked?)")
-            if model.jnt_type[k] not in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+            # int(): under mujoco >= 3.1x, ``np.int32 in (enum, ...)`` is False although ``==`` holds
+            if int(model.jnt_type[k]) not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
                 raise InputError(f"joint {name!r} is not a hinge or slide; q holds one value per joint")
             return k
 
