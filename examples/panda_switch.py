@@ -27,8 +27,8 @@ from functools import cached_property
 
 import numpy as np
 
-from corl.mujoco import (Camera, FrameRecorder, Gripper, Kinematics, PDController, Robot, Target, add_servos,
-                         caption, contact_force, coordinate_feature, example_robot_dir, fit_demonstration,
+from corl.mujoco import (Camera, FrameRecorder, Gripper, Kinematics, PDController, Robot, Target,
+                         add_joint_equality, add_servos, caption, contact_force, coordinate_feature, example_robot_dir, fit_demonstration,
                          load_spec, orientation_feature, position_feature, project_demonstration,
                          solve_waypoints, stack, touching, track, write_side_by_side)
 from corl.problem import Bounds, Demonstration, Outcome
@@ -90,8 +90,7 @@ def build_robot() -> Robot:
         spec.joint(name).armature = arm
     add_servos(spec, ARM, KP, KV, EFFORT)
     add_servos(spec, FINGERS[:1], (200.0,), (5.0,), (40.0,))
-    spec.add_equality(type=mujoco.mjtEq.mjEQ_JOINT, name="fingers", name1=FINGERS[1], name2=FINGERS[0],
-                      data=[0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0])
+    add_joint_equality(spec, FINGERS[1], FINGERS[0], name="fingers")  # finger 2 = finger 1
     spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[1.5, 1.5, 0.01],
                             rgba=[0.35, 0.4, 0.45, 1], contype=0, conaffinity=0)
     spec.worldbody.add_geom(name="post", type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.03, 0.08, HINGE[2] / 2],

@@ -58,13 +58,12 @@ def gripper():
 @pytest.fixture(scope="session")
 def arm():
     """The tiny robot with servos and a force sensor at ``ft``: (Robot, kp, kv)."""
-    from corl.mujoco import Robot, add_force_sensor, add_servos, load_spec
+    from corl.mujoco import Robot, add_force_sensor, add_joint_equality, add_servos, load_spec
 
     spec = load_spec(ARM_XML, moving=ARM_JOINTS + ("fl", "fr"))
     add_servos(spec, ARM_JOINTS, KP, KV, EFFORT)
     add_servos(spec, ("fl",), (200.0,), (2.0,), (20.0,))
-    spec.add_equality(type=mujoco.mjtEq.mjEQ_JOINT, name="couple", name1="fr", name2="fl",
-                      data=[0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0])
+    add_joint_equality(spec, "fr", "fl", name="couple")
     add_force_sensor(spec, "ft")
     return Robot.from_spec(spec, ARM_JOINTS, gripper())
 

@@ -5,13 +5,16 @@ step                            functions
 ==============================  ================================================================
 load, lock joints, gripper      :func:`load_spec`, :class:`Gripper`, :class:`Robot`,
                                 :func:`example_robot_dir`
+a scene from another framework  :func:`load_spec` (``robot_root``), :func:`body_pose`,
+                                :func:`site_pose`
 forward kinematics (Eq. 6)      :class:`Kinematics` (``site``, ``body``, ``position_jacobian``,
                                 ``rotation_jacobian``), :func:`rotation_error`
 Eq. 6 features                  :func:`position_feature`, :func:`orientation_feature`,
                                 :func:`coordinate_feature`, :func:`stack`
 demonstration                   :class:`Target`, :func:`solve_ik`, :func:`solve_waypoints`,
                                 :func:`fit_demonstration`, :func:`project_demonstration`
-rollout                         :func:`add_servos`, :class:`PDController`, :func:`track`
+rollout                         :func:`add_servos`, :class:`PDController`, :func:`track`,
+                                :func:`add_joint_equality` (coupled fingers, a latch)
 forces                          :func:`add_force_sensor`, :class:`ForceSensor`,
                                 :func:`contact_force`, :func:`touching`
 video                           :class:`Camera`, :class:`FrameRecorder`, :func:`caption`,
@@ -25,22 +28,24 @@ as light as numpy. ``examples/panda_switch.py`` builds a whole task with it; the
 """
 
 from corl.mujoco.control import PDController, add_servo, add_servos, dense_reference, track
+from corl.mujoco.equality import add_joint_equality
 from corl.mujoco.demo import ProjectionReport, fit_demonstration, piecewise_linear, project_demonstration
 from corl.mujoco.features import coordinate_feature, orientation_feature, position_feature, stack
 from corl.mujoco.forces import ForceSensor, add_force_sensor, contact_force, remove_static_load, touching
 from corl.mujoco.ik import Target, solve_ik, solve_waypoints
 from corl.mujoco.kinematics import Frame, Kinematics, rotation_error, rotation_error_jacobian, skew
 from corl.mujoco.robot import Gripper, Robot, example_robot_dir, load_spec, urdf_to_mjcf
+from corl.mujoco.scene import body_pose, site_pose
 from corl.mujoco.video import (Camera, FrameRecorder, caption, make_renderer, rendering_available,
                                write_side_by_side)
 
 __all__ = [
-    "Gripper", "Robot", "load_spec", "urdf_to_mjcf", "example_robot_dir",
+    "Gripper", "Robot", "load_spec", "urdf_to_mjcf", "example_robot_dir", "body_pose", "site_pose",
     "Frame", "Kinematics", "rotation_error", "rotation_error_jacobian", "skew",
     "position_feature", "orientation_feature", "coordinate_feature", "stack",
     "Target", "solve_ik", "solve_waypoints",
     "piecewise_linear", "fit_demonstration", "ProjectionReport", "project_demonstration",
-    "add_servo", "add_servos", "dense_reference", "PDController", "track",
+    "add_servo", "add_servos", "dense_reference", "PDController", "track", "add_joint_equality",
     "add_force_sensor", "ForceSensor", "remove_static_load", "contact_force", "touching",
     "Camera", "FrameRecorder", "caption", "write_side_by_side", "rendering_available", "make_renderer",
 ]

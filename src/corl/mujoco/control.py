@@ -23,6 +23,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from corl.errors import InputError
+from corl.mujoco.parse import check_spec
 from corl.mujoco.robot import Robot
 
 __all__ = ["add_servo", "add_servos", "dense_reference", "PDController", "track"]
@@ -32,12 +33,33 @@ def add_servo(spec, joint: str, kp: float, kv: float, effort: float) -> None:
     """Add a position servo ``servo_<joint>`` on ``joint`` to ``spec`` (a mujoco.MjSpec).
 
     Its torque is ``kp (ctrl - q) - kv dq`` clipped to ``[-effort, effort]``; the set-point
-    ``ctrl`` is unlimited.
+    ``ctrl`` is unlimited. An unknown joint, one that is not a hinge or slide, or one with a servo
+    already is refused now (not when the spec compiles).
     """
+    check_spec(spec, "add_servo")
+    _check_servo(spec, joint, kp, kv, effort)
+    _add_servo(spec, joint, kp, kv, effort)
+
+
+def _check_servo(spec, joint: str, kp: float, kv: float, effort: float) -> None:
+    """Refuse bad gains, or a joint that ``spec`` lacks, that is not a hinge or slide, or that has a servo."""
     import mujoco
 
     if not (kp > 0 and kv >= 0 and effort > 0):
         raise InputError(f"servo on {joint!r} needs kp > 0, kv >= 0, effort > 0; got {kp}, {kv}, {effort}")
+    found = spec.joint(joint) if isinstance(joint, str) and joint else None
+    if found is None:
+        names = [j.name for j in spec.joints if j.name]
+        raise InputError(f"no joint {joint!r} in the spec (was it locked by load_spec?); its joints are {names}")
+    if int(found.type) not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+        raise InputError(f"joint {joint!r} is not a hinge or slide: a servo drives one position")
+    if spec.actuator(f"servo_{joint}") is not None:
+        raise InputError(f"joint {joint!r} has a servo already (servo_{joint}); add each servo once")
+
+
+def _add_servo(spec, joint: str, kp: float, kv: float, effort: float) -> None:
+    import mujoco
+
     act = spec.add_actuator(name=f"servo_{joint}", target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
     act.gaintype = mujoco.mjtGain.mjGAIN_FIXED
     act.biastype = mujoco.mjtBias.mjBIAS_AFFINE
@@ -50,13 +72,19 @@ def add_servo(spec, joint: str, kp: float, kv: float, effort: float) -> None:
 
 def add_servos(spec, joints: Sequence[str], kp: Sequence[float], kv: Sequence[float],
                effort: Sequence[float]) -> None:
-    """:func:`add_servo` on each of ``joints`` with its gain and limit (all (J,))."""
+    """:func:`add_servo` on each of ``joints`` with its gain and limit (all (J,)); all or none."""
     joints = list(joints)
     for name, values in (("kp", kp), ("kv", kv), ("effort", effort)):
         if len(values) != len(joints):
             raise InputError(f"{name} has {len(values)} values, expected one per joint ({len(joints)})")
-    for j, p, v, e in zip(joints, kp, kv, effort):
-        add_servo(spec, j, float(p), float(v), float(e))
+    if len(set(joints)) != len(joints):
+        raise InputError(f"joints {joints} name a joint twice; add each servo once")
+    check_spec(spec, "add_servos")
+    servos = [(j, float(p), float(v), float(e)) for j, p, v, e in zip(joints, kp, kv, effort)]
+    for servo in servos:  # check all before adding any
+        _check_servo(spec, *servo)
+    for servo in servos:
+        _add_servo(spec, *servo)
 
 
 def dense_reference(reference, duration: float, dt: float, dim: int) -> tuple[np.ndarray, np.ndarray]:

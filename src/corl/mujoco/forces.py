@@ -19,6 +19,7 @@ from typing import Sequence
 import numpy as np
 
 from corl.errors import InputError
+from corl.mujoco.parse import check_spec
 from corl.mujoco.robot import Robot
 
 __all__ = ["add_force_sensor", "ForceSensor", "remove_static_load", "contact_force", "touching"]
@@ -29,7 +30,13 @@ def add_force_sensor(spec, site: str) -> tuple[str, str]:
     ``spec`` (a mujoco.MjSpec). Returns their names."""
     import mujoco
 
+    check_spec(spec, "add_force_sensor")
+    if not (isinstance(site, str) and site and spec.site(site) is not None):
+        sites = [s.name for s in spec.sites if s.name]
+        raise InputError(f"no site {site!r} in the spec; add it first (body.add_site(name=...)); its sites are {sites}")
     names = (f"{site}_force", f"{site}_torque")
+    if any(spec.sensor(n) is not None for n in names):
+        raise InputError(f"site {site!r} has a force sensor already ({names[0]}); add it once")
     spec.add_sensor(name=names[0], type=mujoco.mjtSensor.mjSENS_FORCE, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site)
     spec.add_sensor(name=names[1], type=mujoco.mjtSensor.mjSENS_TORQUE, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site)
     return names

@@ -16,6 +16,7 @@ its neighbour's solution, so that neighbouring knots stay on one IK branch.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from numbers import Real
 from typing import Sequence
 
 import numpy as np
@@ -51,6 +52,8 @@ class Target:
             if r.shape != (3, 3) or not np.allclose(r @ r.T, np.eye(3), atol=1e-6):
                 raise InputError("Target.rotation must be a rotation matrix (3, 3) or None")
             object.__setattr__(self, "rotation", r)
+        if self.gripper is not None and not (isinstance(self.gripper, Real) and np.isfinite(self.gripper)):
+            raise InputError(f"Target.gripper must be a finite gripper coordinate or None, got {self.gripper!r}")
 
 
 def solve_ik(kin: Kinematics, point: Frame, target: Target, q_init: np.ndarray, *,

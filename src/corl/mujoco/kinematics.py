@@ -123,6 +123,8 @@ class Kinematics:
         key = q.tobytes()
         if key == self._key:
             return
+        if not np.isfinite(q).all():
+            r.check_q(q)  # raises: NaN or inf
         self._key = key
         d, J = self.data, r.num_joints
         d.qpos[r.qpos] = q[:J]

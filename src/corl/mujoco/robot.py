@@ -28,6 +28,8 @@ from typing import Callable, Mapping, Sequence
 import numpy as np
 
 from corl.errors import InputError, MissingExtraError
+from corl.mujoco.parse import compile_spec, one_line, parse_mjcf
+from corl.mujoco.scene import lock_joints
 
 __all__ = ["Gripper", "Robot", "load_spec", "urdf_to_mjcf", "example_robot_dir"]
 
@@ -96,6 +98,8 @@ def _read(source) -> tuple[str, Path | None]:
     """XML text and the folder it came from (None for text)."""
     if isinstance(source, str) and source.lstrip().startswith("<"):
         return source, None
+    if not isinstance(source, (str, os.PathLike)):
+        raise InputError(f"load_spec needs a file path or XML text, got {type(source).__name__}")
     path = Path(source)
     if not path.is_file():
         raise InputError(f"robot file {str(path)!r} does not exist; give the path of an MJCF (.xml) or URDF (.urdf) file")
@@ -149,7 +153,13 @@ def urdf_to_mjcf(urdf_text: str, *, moving: Sequence[str] | None = None, lock: S
     counter = itertools.count()
     text = re.sub(r"<collision>", lambda _: f'<collision name="collision{next(counter)}">', text)
     text = re.sub(r"(<robot [^>]*>)", r"\1" + _COMPILER, text, count=1)
-    model = mujoco.MjModel.from_xml_string(text)
+    try:
+        model = mujoco.MjModel.from_xml_string(text)
+    except ValueError as exc:
+        message = one_line(exc)
+        hint = ("check the mesh paths: pass package_dirs= for package:// paths, or the URDF's path rather than "
+                "its text for relative ones") if "opening file" in message.lower() else "fix the URDF"
+        raise InputError(f"cannot read the URDF: {message}; {hint}") from None
     with tempfile.TemporaryDirectory() as folder:
         path = os.path.join(folder, "robot.xml")
         mujoco.mj_saveLastXML(path, model)
@@ -158,54 +168,57 @@ def urdf_to_mjcf(urdf_text: str, *, moving: Sequence[str] | None = None, lock: S
 
 
 def load_spec(source, *, moving: Sequence[str] | None = None, lock: Sequence[str] = (),
+              robot_root: str | Sequence[str] | None = None,
               package_dirs: Mapping[str, str | os.PathLike] | None = None):
-    """Load an MJCF or URDF robot as an editable :class:`mujoco.MjSpec`, some joints locked.
+    """Load an MJCF or URDF robot, or a whole MJCF scene, as an editable :class:`mujoco.MjSpec`, the
+    robot's idle joints locked.
 
     Parameters
     ----------
     source : path of an ``.xml`` (MJCF) or ``.urdf`` file, or the XML text itself.
-    moving : joints that stay movable; all others are locked. None: all but ``lock``.
+    moving : the robot's joints that stay movable; the robot's other joints are locked. None: all
+        but ``lock``.
     lock : joints to lock (when ``moving`` is None).
+    robot_root : MJCF only: the body (or bodies) the robot hangs from. Default: the trees below the
+        world body that hold the ``moving`` joints (see :func:`corl.mujoco.scene.lock_joints`).
     package_dirs : URDF only, see :func:`urdf_to_mjcf`.
 
     A locked joint holds its zero position: in a URDF it becomes ``fixed``; in an MJCF it is
-    deleted, which welds its body to the parent in the pose of ``qpos = 0``. Free joints (loose
-    objects of an MJCF scene) are never locked.
+    deleted, which welds its body to the parent in the pose of ``qpos = 0`` (with the actuators,
+    sensors and joint equalities that need it, and the keyframes). Joints of the other bodies of an
+    MJCF scene (a door's hinge, a latch) and free joints are never locked. An MJCF is compiled once
+    here, so a missing mesh or a repeated name is refused now.
 
     Returns
     -------
     mujoco.MjSpec : add the scene, servos (:func:`corl.mujoco.add_servos`) and sensors, then
     compile it into a :class:`Robot` with :meth:`Robot.from_spec`.
+
+    Raises
+    ------
+    InputError : a missing or malformed file, an unknown joint, or a robot that the ``moving``
+        joints leave ambiguous (the message lists what would be welded).
     """
-    mujoco = _mujoco()
     text, folder = _read(source)
     if re.search(r"<robot\b", text[:2000]):
-        return mujoco.MjSpec.from_string(urdf_to_mjcf(text, moving=moving, lock=lock, package_dirs=package_dirs,
-                                                      base_dir=folder))
-    spec = mujoco.MjSpec.from_string(text) if folder is None else mujoco.MjSpec.from_file(str(Path(source)))
-    names = [j.name for j in spec.joints]
-    for name in list(moving or ()) + list(lock):
-        if name not in names:
-            raise InputError(f"joint {name!r} is not in the MJCF; its joints are {names}")
-    keep = set(moving) if moving is not None else set(names) - set(lock)
-    for joint in list(spec.joints):
-        if joint.name not in keep and int(joint.type) != int(mujoco.mjtJoint.mjJNT_FREE):
-            _delete(spec, joint)
+        if robot_root is not None:
+            raise InputError("robot_root is for MJCF scenes; a URDF holds one robot: leave it out")
+        mjcf = urdf_to_mjcf(text, moving=moving, lock=lock, package_dirs=package_dirs, base_dir=folder)
+        return parse_mjcf(mjcf, "MJCF made from the URDF")
+    spec = parse_mjcf(text if folder is None else Path(source))
+    lock_joints(spec, moving=moving, lock=lock, robot_root=robot_root)
+    compile_spec(spec, "MJCF with its joints locked")
     return spec
 
 
-def _delete(spec, element) -> None:
-    """Remove ``element`` from ``spec``: ``spec.delete(element)`` from mujoco 3.4 on, ``element.delete()`` before."""
-    if hasattr(spec, "delete"):
-        spec.delete(element)
-    else:  # mujoco 3.3
-        element.delete()
-
-
 def example_robot_dir(name: str) -> Path:
-    """Folder of robot ``name`` (e.g. ``"panda_description"``) in the installed ``example-robot-data``."""
+    """Folder of robot ``name`` (a plain folder name, e.g. ``"panda_description"``) in the installed
+    ``example-robot-data``."""
     from importlib import metadata
 
+    if not (isinstance(name, str) and re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_.-]*", name)):
+        raise InputError(f"robot name {name!r} is not a plain folder name of example-robot-data "
+                         "(e.g. 'panda_description'); give the name of one folder, without slashes")
     try:
         dist = metadata.distribution("example-robot-data")
     except metadata.PackageNotFoundError:
@@ -275,7 +288,7 @@ class Robot:
     @classmethod
     def from_spec(cls, spec, joints: Sequence[str], gripper: Gripper | None = None) -> "Robot":
         """Compile ``spec`` (a :class:`mujoco.MjSpec`) and index it, see :meth:`from_model`."""
-        return cls.from_model(spec.compile(), joints, gripper)
+        return cls.from_model(compile_spec(spec), joints, gripper)
 
     @property
     def num_joints(self) -> int:
@@ -298,6 +311,9 @@ class Robot:
         if q.shape != (self.dim,):
             grip = " + gripper coordinate" if self.gripper else ""
             raise InputError(f"q has shape {q.shape}, expected ({self.dim},) = {self.num_joints} joints{grip}")
+        if not np.all(np.isfinite(q)):
+            raise InputError(f"q contains NaN or inf at {np.flatnonzero(~np.isfinite(q)).tolist()}: "
+                             "give finite joint positions")
         return q
 
     def write(self, data, q: np.ndarray) -> None:
@@ -313,12 +329,14 @@ class Robot:
         return data.qpos[self.qpos].copy()
 
     def id(self, kind: str, name: str) -> int:
-        """MuJoCo id of a ``"site"``, ``"body"``, ``"geom"`` or ``"sensor"`` by name."""
+        """MuJoCo id of a ``"site"``, ``"body"``, ``"geom"``, ``"sensor"`` or ``"joint"`` by name
+        (e.g. an object's hinge: its angle is ``data.qpos[model.jnt_qposadr[id]]``)."""
         mujoco = _mujoco()
         obj = {"site": mujoco.mjtObj.mjOBJ_SITE, "body": mujoco.mjtObj.mjOBJ_BODY,
-               "geom": mujoco.mjtObj.mjOBJ_GEOM, "sensor": mujoco.mjtObj.mjOBJ_SENSOR}.get(kind)
+               "geom": mujoco.mjtObj.mjOBJ_GEOM, "sensor": mujoco.mjtObj.mjOBJ_SENSOR,
+               "joint": mujoco.mjtObj.mjOBJ_JOINT}.get(kind)
         if obj is None:
-            raise InputError(f"kind must be site, body, geom or sensor, got {kind!r}")
+            raise InputError(f"kind must be site, body, geom, sensor or joint, got {kind!r}")
         k = mujoco.mj_name2id(self.model, obj, name)
         if k < 0:
             raise InputError(f"no {kind} named {name!r} in the model")

@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from corl.errors import InputError
+from corl.mujoco.equality import add_joint_equality
 
 __all__ = [
     "ARM_JOINTS",
@@ -276,9 +277,8 @@ def _build_spec(geometry: DoorGeometry):
     for name in (DRIVEN_FINGER_JOINT,) + FOLLOWER_FINGER_JOINTS:
         spec.joint(name).armature = 0.002
     for name in FOLLOWER_FINGER_JOINTS:  # q_follower = 0 + 1 * q_driven
-        spec.add_equality(type=mujoco.mjtEq.mjEQ_JOINT, name=f"couple_{name}", name1=name,
-                          name2=DRIVEN_FINGER_JOINT, data=[0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0],
-                          solref=[0.004, 1.0])
+        add_joint_equality(spec, name, DRIVEN_FINGER_JOINT, polycoef=(0.0, 1.0), name=f"couple_{name}",
+                           solref=[0.004, 1.0])
 
     # --- sites: fingertip pads and the wrist force-torque frame
     spec.body("r_gripper_l_finger_tip_link").add_site(name="pad_l", pos=[PAD_X, PAD_INNER_Y, 0],
@@ -319,8 +319,8 @@ def _build_spec(geometry: DoorGeometry):
                     rgba=[0.8, 0.8, 0.8, 1], contype=0, conaffinity=_HAND_BIT,
                     friction=[1.0, 0.005, 0.0001])
     # The latch: hinge angle = 0 while active (Alg.: switched off in the rollout past latch_angle).
-    spec.add_equality(type=mujoco.mjtEq.mjEQ_JOINT, name="latch", name1="door_hinge",
-                      data=[0] * 11, solref=[0.004, 1.0], solimp=[0.95, 0.99, 0.001, 0.5, 2])
+    add_joint_equality(spec, "door_hinge", polycoef=(0.0, 0.0), name="latch", solref=[0.004, 1.0],
+                       solimp=[0.95, 0.99, 0.001, 0.5, 2])
     spec.worldbody.add_light(pos=[0, 0, 3], dir=[0, 0, -1])
     return spec, x_face, hinge_y
 
