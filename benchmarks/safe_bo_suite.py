@@ -364,7 +364,8 @@ def run_pibu(p, start, budget, seed):  # PIBU as a user gets it now: GPs fitted 
 
 def run_pibu_tenth(p, start, budget, seed):  # the baseline: l = box / 10, paper sf and noise
     ls = tuple(0.1 * p.bounds.width)
-    cfg = BOConfig(RegressionConfig(lengthscale=ls), ClassifierConfig(lengthscale=ls),
+    cfg = BOConfig(RegressionConfig(lengthscale=ls, signal_std=10.0, noise_std=0.11),
+                   ClassifierConfig(lengthscale=ls, signal_std=10.0),
                    distance_scale=tuple(p.bounds.width))
     return _drive(PIBUOptimizer(p.bounds, cfg, max_evals=budget, seed=seed), p, start, budget)
 

@@ -47,6 +47,20 @@ def test_tell_without_ask_and_repeated_ask():
     assert learner.ask() is learner.ask()
 
 
+def test_a_second_tell_without_an_ask_is_refused_and_the_next_trial_stays_pending():
+    task = SyntheticTask((0.5, 0.5))
+    learner = CORL(task, scripted([0.4, 0.5]), fast_config(max_rounds=1))
+    first = learner.ask()
+    learner.tell(task.rollout(first.w))  # works out trial 1 at once, but does not hand it out
+    with pytest.raises(StateError, match=r"tell\(\) without a pending ask\(\): call ask\(\) first"):
+        learner.tell(Outcome(True, 0.5))
+    assert len(learner.history) == 1
+    second = learner.ask()
+    assert second.index == 1
+    learner.tell(task.rollout(second.w))
+    assert [p.index for p, _ in learner.history] == [0, 1]
+
+
 def test_nan_return_is_rejected_before_it_reaches_the_learner():
     learner = CORL(SyntheticTask((0.5, 0.5)), scripted([]))
     learner.ask()
@@ -128,3 +142,31 @@ def test_corl_pibu_finds_the_global_optimum_safely(w0):
     failures = sum(not o.success for _, o in learner.history)
     assert np.linalg.norm(best.w - W_OPT) < 0.05
     assert failures <= 4
+
+
+def test_a_run_that_ends_at_max_rounds_names_the_black_box_step_that_stopped():
+    """Issue 21, part 5: rounds whose step 2 stops by its own rule without moving theta* end with
+    that rule's reason, not ``max_rounds`` (more rounds would not help it)."""
+    from corl.optimizers.base import StopReason
+
+    class Nothing(Scripted):  # step 2: nothing is worth a trial
+        def _propose(self):
+            return StopReason.NO_IMPROVEMENT
+
+    task = SyntheticTask((0.6, 0.4))  # |w0| = 0.72: two trust-region steps per round leave w moving
+    learner = CORL(task, lambda b, x0, rng: Nothing(b, []), fast_config(max_rounds=2, max_optimization_steps=2))
+    learner.run(max_trials=500)
+    assert learner.stop_reason is StopReason.NO_IMPROVEMENT
+    assert learner.rl_stop_reason is StopReason.NO_IMPROVEMENT
+    assert "black-box step of round 1" in learner.stop_detail and "no_improvement" in learner.stop_detail
+
+
+def test_a_run_whose_last_black_box_step_still_moved_theta_ends_at_max_rounds():
+    from corl.optimizers.base import StopReason
+
+    task = SyntheticTask((0.6, 0.4))  # theta0 = 0.588; R grows towards theta = 0
+    learner = CORL(task, scripted([0.3]), fast_config(max_rounds=1, max_optimization_steps=2))
+    learner.run(max_trials=500)
+    assert learner.best.theta[0] == pytest.approx(0.3)
+    assert learner.stop_reason is StopReason.MAX_ROUNDS
+    assert "max_rounds=1" in learner.stop_detail

@@ -18,6 +18,7 @@ from corl.errors import InputError, StateError
 from corl.problem import Outcome
 from corl.session import StoredRun
 from corl.store import RunStore, StoreError
+from corl.settings import PAPER_SYNTHETIC
 from corl.tasks.synthetic import SyntheticTask
 
 CORL = [sys.executable, "-m", "corl.cli"]
@@ -190,12 +191,14 @@ def test_corl_overrides_keep_the_default_settings_of_a_user_task(monkeypatch):
 
     class Mine(SyntheticTask):
         name = "mine"
+        method_settings = None  # a user's task: no preset of its own
 
     _build(Mine(), "CORL", 0, {"rollout_every_step": False})
     assert seen["s"].regression == methods.USER_SETTINGS.regression
     assert seen["s"].regression.fit_hyperparameters and seen["s"].corl.rollout_every_step is False
     _build(SyntheticTask(), "CORL+PIBU", 0, {"rollout_every_step": False})
-    assert seen["s"].regression == methods.MethodSettings().regression  # the paper's, for the paper's task
+    assert seen["s"].regression == PAPER_SYNTHETIC.regression  # the paper's, for the paper's task
+    assert not seen["s"].regression.fit_hyperparameters
 
 
 @pytest.mark.parametrize("left", ["empty file", "header only"])

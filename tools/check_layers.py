@@ -33,7 +33,7 @@ MAX_LINES = 500
 # Lowest first. A layer names module prefixes: "corl.trajectory" holds corl.trajectory and every
 # module below it. Derived from the code: each layer imports only the ones before it.
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
-    ("base", ("corl.errors", "corl.versions")),  # exceptions, library versions: import nothing of corl
+    ("base", ("corl.errors", "corl.versions", "corl.checks")),  # exceptions, versions, setting checks: nothing of corl above
     ("numerics", ("corl.numerics",)),  # jitter ladder, variance floors, log-space CDFs
     ("problem", ("corl.problem",)),  # Eq. 2-5: Task, Bounds, Proposal, Outcome, Demonstration
     ("trajectory", ("corl.trajectory",)),  # B-splines, features, the solver of Eq. 8

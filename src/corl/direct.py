@@ -60,7 +60,7 @@ class DirectSearch:
 
     def tell(self, outcome: Outcome) -> None:
         if self._pending is None:
-            raise StateError("tell() without a pending trial: call ask() first")
+            raise StateError("tell() without a pending ask(): call ask() first, run its trial, then tell its outcome")
         if not isinstance(outcome, Outcome):
             raise InputError(f"tell() needs a corl.Outcome, got {type(outcome).__name__}")
         p, self._pending = self._pending, None

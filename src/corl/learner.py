@@ -49,6 +49,7 @@ from typing import Callable, Generator, Iterator
 
 import numpy as np
 
+from corl import checks
 from corl.errors import DemonstrationFailedError, InputError, StateError
 from corl.loop import drive
 from corl.optimizers.base import BlackBoxOptimizer, StopReason
@@ -61,6 +62,7 @@ __all__ = ["CORLConfig", "CORL", "Best", "OptimizerFactory", "cost_of"]
 OptimizerFactory = Callable[[Bounds, np.ndarray, np.random.Generator], BlackBoxOptimizer]
 
 
+@checks.keywords({"rl_budget": "CORL's budget is CORLConfig(max_rl_trials=N) (black-box trials over the whole run)"})
 @dataclass(frozen=True)
 class CORLConfig:
     """Settings of Algorithm 1 (paper defaults for the synthetic benchmark)."""
@@ -78,11 +80,16 @@ class CORLConfig:
     solver: SolverConfig = field(default_factory=SolverConfig)
     demo_tolerance: float = 1e-3  # the demonstration needs max|h(w0, theta0)| <= this, in h's units
 
-    def __post_init__(self) -> None:
-        if min(self.eps_max, self.eps_w, self.eps_theta, self.demo_tolerance) <= 0:
-            raise InputError("eps_max, eps_w, eps_theta and demo_tolerance must be positive")
-        if min(self.max_rounds, self.max_optimization_steps, self.max_rl_trials) < 1:
-            raise InputError("max_rounds, max_optimization_steps and max_rl_trials must be >= 1")
+    def __post_init__(self) -> None:  # every field checked here, before any rollout (corl.checks)
+        for name in ("eps_max", "eps_w", "eps_theta", "demo_tolerance"):
+            object.__setattr__(self, name, checks.number(f"CORLConfig.{name}", getattr(self, name), low=0.0, low_open=True))
+        for name in ("max_rounds", "max_optimization_steps", "max_rl_trials"):
+            object.__setattr__(self, name, checks.integer(f"CORLConfig.{name}", getattr(self, name), low=1))
+        object.__setattr__(self, "max_phase_steps", checks.integer("CORLConfig.max_phase_steps", self.max_phase_steps))
+        for name in ("theta_step_stop", "rollout_every_step", "reuse_data"):
+            checks.flag(f"CORLConfig.{name}", getattr(self, name))
+        if not isinstance(self.solver, SolverConfig):
+            raise InputError(f"CORLConfig.solver must be a corl.settings.SolverConfig, got {type(self.solver).__name__}")
 
 
 @dataclass(frozen=True)
@@ -122,7 +129,9 @@ class CORL:
     ``max_optimization_steps`` per round and ``max_rounds``.
 
     :attr:`stop_reason` is ``BUDGET`` once the black-box budget is spent, ``CONVERGED`` when
-    (w*, theta*) stopped changing, ``MAX_ROUNDS`` after ``max_rounds`` rounds, ``NO_SAFE_POINT``
+    (w*, theta*) stopped changing; after ``max_rounds`` rounds, the last black-box step's own reason
+    (``CONVERGED``, ``NO_IMPROVEMENT``, ``NO_SAFE_POINT``) when it stopped without moving theta*,
+    else ``MAX_ROUNDS``; :attr:`stop_detail` says which loop stopped, in words; ``NO_SAFE_POINT``
     when the demonstration failed, ``ERROR`` after any other exception; None while the run goes on.
     """
 
@@ -141,11 +150,14 @@ class CORL:
         self.eps_max = config.eps_max  # current trust region of step 1, halved at each failed step
         self.rounds = 0
         self._end: StopReason | None = None
+        self.rl_stop_reason: StopReason | None = None  # why the latest black-box step (step 2) stopped
+        self.stop_detail = ""  # which loop of Algorithm 1 stopped the run, in words (see stop_reason)
         self.optimizers: list[BlackBoxOptimizer] = []
         self._best: Best | None = None
         # h(w0, theta0) ~ 0 is checked here, before anything can be rolled out
         self._demonstration = check_demonstration(task, tolerance=config.demo_tolerance)
         self._pending: Proposal | None = None
+        self._asked = False  # the pending trial was handed out by ask(): only then may tell() answer it
         self._finished = False
         self._gen: Generator[Proposal, Outcome, None] = self._algorithm()
 
@@ -153,6 +165,7 @@ class CORL:
     def ask(self) -> Proposal:
         """The next trial to execute. A trial asked but not told is returned again."""
         if self._pending is not None:
+            self._asked = True
             return self._pending
         if self._finished:
             raise StateError("CORL has finished; read .best")
@@ -161,16 +174,17 @@ class CORL:
         except StopIteration:
             self._finished = True
             raise StateError("CORL has finished; read .best") from None
+        self._asked = True
         return self._pending
 
     def tell(self, outcome: Outcome) -> None:
-        """Record the outcome of the pending trial."""
-        if self._pending is None:
-            raise StateError("tell() without a pending trial: call ask() first, execute it, then tell its outcome")
+        """Record the outcome of the trial handed out by the last :meth:`ask` (each trial is told once)."""
+        if self._pending is None or not self._asked:  # the next trial is worked out at tell(), but not yet asked
+            raise StateError("tell() without a pending ask(): call ask() first, run its trial, then tell its outcome")
         if not isinstance(outcome, Outcome):
             raise InputError(f"tell() needs a corl.Outcome, got {type(outcome).__name__}")
         proposal = self._pending
-        self._pending = None
+        self._pending, self._asked = None, False
         self.history.append((proposal, outcome))
         if not outcome.success:
             self.failed_w.append(np.array(proposal.w, dtype=float))
@@ -245,9 +259,21 @@ class CORL:
             # Alg. 1: until no change in policy parameter (w*, theta*)
             if np.linalg.norm(w_star - w_before) < cfg.eps_w and np.array_equal(theta_star, theta_before):
                 self._end = StopReason.CONVERGED
+                self.stop_detail = f"(w*, theta*) stopped changing in round {self.rounds}"
                 break
         else:
-            self._end = StopReason.MAX_ROUNDS
+            self._end, self.stop_detail = self._rounds_end(theta_star, theta_before)
+
+    def _rounds_end(self, theta_star, theta_before) -> tuple[StopReason, str]:
+        """Why the last round ended the run: its black-box step, when that stopped by its own rule
+        without moving theta* (more rounds would not help it), else ``MAX_ROUNDS``."""
+        rounds = self.config.max_rounds
+        reason = self.rl_stop_reason
+        own = (StopReason.CONVERGED, StopReason.NO_IMPROVEMENT, StopReason.NO_SAFE_POINT)
+        if reason in own and np.array_equal(theta_star, theta_before):
+            return reason, (f"the black-box step of round {rounds - 1} (the last of max_rounds={rounds}) stopped: "
+                            f"{reason.value}, theta* unchanged")
+        return StopReason.MAX_ROUNDS, f"Algorithm 1 ran all max_rounds={rounds} rounds; theta* still moved in the last"
 
     def _optimization(self, w_star, theta_star, r_star):
         task, cfg = self.task, self.config
@@ -357,6 +383,10 @@ class CORL:
             if cfg.theta_step_stop and np.linalg.norm(theta - previous) < cfg.eps_theta:
                 break  # until ||theta(d+1) - theta(d)|| < eps_theta
             previous = theta
+        if optimizer.done:
+            self.rl_stop_reason = optimizer.stop_reason
+        else:  # the learner stopped it: the run's budget, or Alg. 1's ||theta(d+1) - theta(d)|| < eps_theta
+            self.rl_stop_reason = StopReason.BUDGET if self.rl_trials >= cfg.max_rl_trials else StopReason.CONVERGED
         # set best theta* = argmax_{theta in D} R(theta) s.t. S(theta*) = 1
         for w, theta, r in candidates:
             if r > r_star:

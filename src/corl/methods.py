@@ -20,7 +20,6 @@ import numpy as np
 from corl.direct import DirectSearch
 from corl.errors import InputError
 from corl.learner import CORL
-from corl.optimizers.gpconfig import FITTED_CLASSIFIER, FITTED_REGRESSION
 from corl.optimizers.registry import OPTIMIZERS
 from corl.problem import Task
 from corl.settings import MethodSettings  # re-exported: defined below the tasks
@@ -46,8 +45,9 @@ DEFAULT_METHOD = "CORL"
 _UNCOUNTED = 2**62  # CORL counts its black-box trials itself; the optimizer inside never stops on a budget
 
 
-#: A user's task (one without ``method_settings()``): GP hyperparameters learned from the data.
-USER_SETTINGS = MethodSettings(regression=FITTED_REGRESSION, classifier=FITTED_CLASSIFIER)
+#: A user's task (one without ``method_settings()``): GP hyperparameters learned from the data,
+#: the same as ``MethodSettings()``.
+USER_SETTINGS = MethodSettings()
 
 
 def _factory(name: str, s: MethodSettings) -> Callable:
@@ -61,19 +61,16 @@ def _factory(name: str, s: MethodSettings) -> Callable:
 def settings_for(task: Task) -> MethodSettings:
     """The settings a method gets for ``task`` when none are given.
 
-    The task's own (``task.method_settings()``, e.g. the door's hyperparameters from Sec. VIII-B),
-    the paper's synthetic values for the synthetic task, or, for a user's task,
-    :data:`USER_SETTINGS` (hyperparameters fitted from the data).
+    The task's own (``task.method_settings()``: the paper's presets for the synthetic task and the
+    door), or, for a task without it, :data:`USER_SETTINGS` (hyperparameters fitted from the data).
+    Checked against the task's theta (:meth:`MethodSettings.check_task`) before any rollout.
     """
     preset = getattr(task, "method_settings", None)  # corl.problem.HasMethodSettings
-    if callable(preset):
-        settings = preset()
-    else:
-        settings = MethodSettings() if getattr(task, "name", None) == "synthetic" else USER_SETTINGS
+    settings = preset() if callable(preset) else USER_SETTINGS
     if not isinstance(settings, MethodSettings):
         raise InputError(f"task '{task.name}': method_settings() returned {type(settings).__name__}; "
                          "it must return a corl.settings.MethodSettings")
-    return settings
+    return settings.check_task(task)
 
 
 def make_method(name: str, task: Task, *, seed: int = 0, settings: MethodSettings | None = None):
@@ -82,8 +79,16 @@ def make_method(name: str, task: Task, *, seed: int = 0, settings: MethodSetting
     ``settings`` default to :func:`settings_for` the task. ``"CORL"`` is Alg. 1 with SEIB
     (:data:`DEFAULT_METHOD`).
     """
+    if not isinstance(name, str) or not (name in METHODS or name.startswith("CORL+")):
+        raise InputError(f"unknown method {name!r}; choose one of {', '.join(METHODS)}")
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InputError(f"seed must be an integer >= 0, got {type(seed).__name__} {seed!r:.40}")
     if settings is None:
         settings = settings_for(task)
+    elif not isinstance(settings, MethodSettings):
+        raise InputError(f"make_method(settings=...) must be a corl.settings.MethodSettings, got {type(settings).__name__}")
+    else:
+        settings.check_task(task)
     if name == "CORL" or name.startswith("CORL+"):
         inner = _factory("SEIB" if name == "CORL" else name[len("CORL+"):], settings)
         return CORL(task, lambda b, x0, rng: inner(b, x0, rng, _UNCOUNTED), settings.corl, seed=seed)

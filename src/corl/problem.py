@@ -46,6 +46,8 @@ class Bounds:
     def __post_init__(self) -> None:
         lower = as_vector(self.lower, name="lower bound")
         upper = as_vector(self.upper, len(lower), name="upper bound")
+        if lower.shape[0] == 0:
+            raise InputError("bounds are empty: give lower and upper with one entry per dimension of theta (m >= 1)")
         if np.any(lower >= upper):
             raise InputError(f"bounds need lower < upper in every coordinate, got {lower} and {upper}")
         object.__setattr__(self, "lower", lower)

@@ -60,8 +60,8 @@ def test_pibu_boundary_level_is_zero_mid_band_and_positive_inside():
     rng = np.random.default_rng(3)
     X = rng.random((30, 3))
     s = np.linalg.norm(X - 0.5, axis=1) < 0.3
-    cl = ClassifierConfig(lengthscale=0.2).build().fit(X, s)
-    rg = RegressionConfig(lengthscale=0.2).build().fit(X[s], -((X[s] - 0.5) ** 2).sum(1))
+    cl = ClassifierConfig(lengthscale=0.2, signal_std=10.0).build().fit(X, s)
+    rg = RegressionConfig(lengthscale=0.2, signal_std=10.0, noise_std=0.11).build().fit(X[s], -((X[s] - 0.5) ** 2).sum(1))
     acq = PIBU(rg, cl, 0.0)
     U = rng.random((4000, 3))
     parts, level = acq.parts(U), acq.boundary_level(U)

@@ -1,8 +1,11 @@
 """MAP hyperparameters of g_R and g_S (corl.gp.fitting): recovery, units, fallbacks, warm starts."""
 
+import warnings
+
 import numpy as np
 import pytest
 
+from corl.errors import InputError
 from corl.gp import GPRegression, SquaredExponential
 from corl.gp.fitting import ClassifierPriors, RegressionPriors, fit_classifier, fit_regression
 from corl.optimizers.gpconfig import SYNTHETIC_CLASSIFIER, SYNTHETIC_REGRESSION, ModelFitter
@@ -116,3 +119,28 @@ def test_fixed_configs_are_untouched_by_the_fitter():
                                   SYNTHETIC_REGRESSION.build().fit(X, y).predict(Xs)[0])
     np.testing.assert_array_equal(fitter.classifier(X, s).predict_proba(Xs),
                                   SYNTHETIC_CLASSIFIER.build().fit(X, s).predict_proba(Xs))
+
+
+def test_regression_fits_returns_far_from_zero_with_a_modest_spread():
+    # returns about 1e155 whose spread is 1e-8 of that: y^2 overflows, the fitted GP does not (the
+    # refusal below is about the spread, which the GP's variance squares, not about the magnitude)
+    X, f, _ = _gp_sample([0.2, 0.3], 12, 0)
+    spread = 1e147
+    big = fit_regression(X, 1e155 + spread * f, BOX)
+    small = fit_regression(X, spread * f, BOX)  # the same data, shifted to where nothing overflows
+    Xs = BOX.from_unit(np.random.default_rng(1).random((20, 2)))
+    mu_big, var_big = big.model.predict(Xs)
+    mu_small, var_small = small.model.predict(Xs)
+    # 1e155 is held to 2e139 (float64's eps): 1e-7 of the spread; the fits agree to 1e-5 of it
+    np.testing.assert_allclose(mu_big - 1e155, mu_small, rtol=0, atol=1e-5 * spread)
+    np.testing.assert_allclose(var_big, var_small, rtol=1e-5)
+    assert big.extra["scale"] == pytest.approx(small.extra["scale"], rel=1e-6)
+
+
+def test_regression_refuses_returns_a_gp_cannot_hold_in_their_units():
+    X, f, _ = _gp_sample([0.2, 0.3], 6, 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # refused in one line, without an overflow on the way
+        for y in (1e200 * f, np.full(6, 1.7e308)):
+            with pytest.raises(InputError, match="divide them by a constant"):
+                fit_regression(X, y, BOX)  # sf ~ 1e200: its square is past float64's 1.8e308

@@ -70,6 +70,12 @@ def test_weights_are_scale_free_and_equal_on_a_plateau():
     np.testing.assert_array_equal(power_weights(np.full(4, -15.0), 10.0), np.ones(4))
 
 
+def test_weights_of_scores_whose_differences_overflow():
+    # 1.7e308 - (-1.7e308) is past float64's range; the weights are those of the same scores in any unit
+    s = np.array([1.7e308, -1.7e308, 0.0])
+    np.testing.assert_allclose(power_weights(s, 10.0), power_weights(np.array([1.0, -1.0, 0.0]), 10.0), rtol=1e-12)
+
+
 def test_exploration_decays_and_tolerance_stops():
     opt = PoWER(UNIT2, [0.5, 0.5], PoWERConfig(std=0.1, decay=0.5, tol_std=0.01), max_evals=100, seed=4)
     run(opt, quadratic(C2))

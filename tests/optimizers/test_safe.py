@@ -78,6 +78,12 @@ def test_return_scale():
     assert return_scale(np.array([0.0, 0.0])) == 1.0
 
 
+def test_return_scale_of_returns_whose_squares_overflow():
+    assert return_scale(np.array([1e300, -1e300])) == pytest.approx(1e300, rel=1e-12)
+    assert return_scale(np.array([1.7e308, 1.7e308])) == 1.7e308  # no spread: the magnitude
+    assert return_scale(np.array([3e200, 1e200])) == pytest.approx(1e200, rel=1e-12)
+
+
 def test_corl_is_registered_and_uses_the_safe_optimizer():
     from corl.methods import DEFAULT_METHOD, METHODS, make_method
     from corl.tasks.synthetic import SyntheticTask
@@ -345,7 +351,7 @@ def test_far_lengthscale_is_checked_where_it_is_made():
     hash(SEIBConfig(far_lengthscale=0.2))
     with pytest.raises(InputError, match="prior bounds"):
         SafeBOOptimizer(UNIT2, seib=SEIBConfig(far_lengthscale=5.0))
-    fixed = BOConfig(classifier=ClassifierConfig(lengthscale=0.1))
+    fixed = BOConfig(classifier=ClassifierConfig(lengthscale=0.1, signal_std=10.0))
     with pytest.raises(InputError, match="fixed"):
         SafeBOOptimizer(UNIT2, fixed, seib=SEIBConfig(far_lengthscale=0.15))
     assert SEIBConfig(far_lengthscale=np.float32(0.2)).far_lengthscale == pytest.approx(0.2)
@@ -358,11 +364,12 @@ def test_far_lengthscale_with_fixed_gp_values_is_refused_where_the_settings_are_
 
     import corl
     from corl.acquisition.safe_ei import SEIBConfig
-    from corl.settings import MethodSettings
+    from corl.settings import PAPER_SYNTHETIC, MethodSettings
 
     far = SEIBConfig(far_lengthscale=0.15)
     with pytest.raises(InputError, match="fixed"):
-        MethodSettings(seib=far)  # the paper's fixed values by default
+        replace(PAPER_SYNTHETIC, seib=far)  # the paper's fixed values
+    MethodSettings(seib=far)  # the default fits g_S: fine
     with pytest.raises(InputError, match="fixed"):
         replace(corl.OptimizerSettings.for_box(UNIT2), seib=far)
     with pytest.raises(InputError, match="prior bounds"):
@@ -370,6 +377,6 @@ def test_far_lengthscale_with_fixed_gp_values_is_refused_where_the_settings_are_
     replace(corl.methods.USER_SETTINGS, seib=far)  # fitted: fine
     opt = corl.make_optimizer("CORL", UNIT2, [0.5, 0.5], budget=5)
     opt.seib = far  # replaced after construction: still refused, at the far look
-    opt.models.classifier_config = ClassifierConfig(lengthscale=0.1)
+    opt.models.classifier_config = ClassifierConfig(lengthscale=0.1, signal_std=10.0)
     with pytest.raises(InputError, match="fixed"):
         opt._far_look_classifier()

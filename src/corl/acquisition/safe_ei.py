@@ -93,6 +93,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import ndtr
 
+from corl import checks
 from corl.errors import InputError
 from corl.gp.classification import expected_sigmoid
 from corl.numerics import floor_variance
@@ -110,6 +111,7 @@ def expected_improvement(mu, var, threshold: float) -> np.ndarray:
     return np.maximum(sd * (u * ndtr(u) + _INV_SQRT_2PI * np.exp(-0.5 * u * u)), 0.0)
 
 
+@checks.keywords()
 @dataclass(frozen=True)
 class SEIBConfig:
     """Settings of SEIB; the defaults were chosen on the safe-BO suite's training problems."""
@@ -149,6 +151,8 @@ class SEIBConfig:
                              "band_rel=inf never maps the edge at the band points)")
         if not (np.isfinite(self.beta) and np.isfinite(self.far_beta)):
             raise InputError(f"beta and far_beta (UCB widths) must be finite, got {self.beta}, {self.far_beta}")
+        if not np.isfinite(self.stop_value):  # inf would stop before the first look
+            raise InputError(f"SEIBConfig.stop_value must be a finite number >= 0, got {self.stop_value}")
         if len(self.reach) == 0 or min(self.reach) < 0:
             raise InputError(f"reach needs at least one distance, all >= 0, got {self.reach}")
         if not -1.0 <= self.far_behind <= 1.0:  # NaN fails too

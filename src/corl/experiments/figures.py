@@ -92,7 +92,7 @@ def plot_return_map(learner, path: str | Path, *, regression=None, classifier=No
                     labels=("theta 1", "theta 2"), title: str = "Learned return R(theta) (Fig. 2c)") -> Path:
     """GP mean of R over theta with successes (blue), failures (red), the classifier's decision
     boundary (red line, p = 0.5) and the best theta (magenta star). 1-D or 2-D theta."""
-    from corl.optimizers.gpconfig import ClassifierConfig, RegressionConfig
+    from corl.optimizers.gpconfig import ClassifierConfig, ModelFitter, RegressionConfig
 
     plt = _pyplot()
     opt, X, s, r = _data(learner)
@@ -100,9 +100,10 @@ def plot_return_map(learner, path: str | Path, *, regression=None, classifier=No
     regression = regression or getattr(cfg, "regression", None) or RegressionConfig()
     classifier = classifier or getattr(cfg, "classifier", None) or ClassifierConfig()
     ok = s & np.isfinite(r)
-    reg = regression.build().fit(X[ok], r[ok])
-    clf = classifier.build().fit(X, s)
     bounds = learner.task.theta_bounds
+    fitter = ModelFitter(regression, classifier, bounds)  # fixed values as given, or fitted as the learner fits
+    reg = fitter.regression(X[ok], r[ok])
+    clf = fitter.classifier(X, s)
     best = learner.best
     fig, ax = plt.subplots(figsize=(6, 4.5))
     if bounds.dim == 1:

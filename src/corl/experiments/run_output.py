@@ -35,6 +35,7 @@ def run_summary(task, method: str, seed: int, learner, seconds: float) -> dict:
         "failures": sum(not o.success for _, o in history),
         # why the learner stopped (corl.optimizers.base.StopReason); None for a run cut short
         "stop_reason": None if getattr(learner, "stop_reason", None) is None else learner.stop_reason.value,
+        "stop_detail": getattr(learner, "stop_detail", ""),  # CORL: which loop of Algorithm 1 stopped, in words
         "seconds": seconds,
         "versions": library_versions(),
     }

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from corl.methods import PAPER_FIG1, MethodSettings, make_method
+from corl.settings import PAPER_SYNTHETIC
 from corl.tasks.synthetic import W_OPT, SyntheticTask, distance_to_safe
 
 __all__ = ["FOUND_TOLERANCE", "RunMetrics", "starts", "run_one", "sweep", "aggregate"]
@@ -44,7 +45,7 @@ def starts(n: int, seed: int) -> np.ndarray:
 
 
 def run_one(method: str, start_index: int, w0: np.ndarray, seed: int,
-            settings: MethodSettings = MethodSettings()) -> RunMetrics:
+            settings: MethodSettings = PAPER_SYNTHETIC) -> RunMetrics:
     t0 = time.perf_counter()
     task = SyntheticTask(w0)
     learner = make_method(method, task, seed=seed * 100003 + start_index, settings=settings)
@@ -64,7 +65,7 @@ def run_one(method: str, start_index: int, w0: np.ndarray, seed: int,
 
 
 def sweep(methods, n_starts: int, seed: int, *, jobs: int = 1, backend: str = "loky",
-          address: str | None = None, settings: MethodSettings = MethodSettings(),
+          address: str | None = None, settings: MethodSettings = PAPER_SYNTHETIC,
           progress=None) -> list[RunMetrics]:
     """Every method from the same ``n_starts`` starts, in parallel.
 

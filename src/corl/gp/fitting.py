@@ -180,6 +180,21 @@ def _warm_start(warm, priors: list[HyperPrior]) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------
 # g_R
 # ---------------------------------------------------------------------------------------------
+_LARGEST_SCALE = 1e150  # a GP's signal std up to this has a finite square, with room for the products on it
+
+
+def _mean_and_spread(y: np.ndarray) -> tuple[float, float]:
+    """Mean and standard deviation of ``y`` (d,); (0, 0) for no data. Past 1e150 (where ``y^2``
+    and even a sum overflow) both are taken of ``y / max|y|`` and scaled back."""
+    if not y.size:
+        return 0.0, 0.0
+    top = float(np.max(np.abs(y)))
+    if top <= _LARGEST_SCALE:
+        return float(np.mean(y)), float(np.std(y))
+    u = y / top
+    return top * float(np.mean(u)), top * float(np.std(u))
+
+
 def fit_regression(X, y, bounds, priors: RegressionPriors = RegressionPriors(), warm=None) -> FitResult:
     """MAP fit of g_R (ARD squared exponential, Gaussian noise, constant mean = mean of y).
 
@@ -203,10 +218,13 @@ def fit_regression(X, y, bounds, priors: RegressionPriors = RegressionPriors(), 
     U = bounds.to_unit(X)
     # Standardise: z = (y - mean) / scale. One point (or equal returns) has no spread; then the
     # return's own magnitude sets the scale so that a later change of units changes nothing.
-    mean = float(np.mean(y)) if y.size else 0.0
-    spread = float(np.std(y)) if y.size else 0.0
+    mean, spread = _mean_and_spread(y)
     tiny = 1e-12 * max(1.0, abs(mean))
     scale = spread if spread > tiny else (abs(mean) if abs(mean) > 0 else 1.0)
+    if scale * priors.signal_std.high > _LARGEST_SCALE:  # sf = sf_unit * scale is squared in every kernel
+        raise InputError(f"returns as large as {np.max(np.abs(y)):.3g} overflow a GP in their own units (its "
+                         f"variance would pass 1e308): divide them by a constant first (corl's optimizers "
+                         f"divide returns beyond 1e100 by a power of two)")
     z = (y - mean) / scale
 
     v, reason = _warm_start(warm, plist), ""

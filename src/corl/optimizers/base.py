@@ -19,11 +19,19 @@ The stopping contract
   other data arrives, and worked out again from all the data.
 * Every stop but the budget is a function of the data: a ``tell`` after a stop lets the method
   decide again (e.g. a successful point told after an all-failure history).
+* Each asked point is told once: a ``tell`` that answers the point told last, with no ``ask``
+  since, is refused (:class:`~corl.errors.StateError`, nothing recorded). A point that answers
+  nothing asked is data and always welcome (a demonstration, data told up front, another
+  method's trials).
+* Returns reach the models in units where they cannot overflow: returns beyond
+  :data:`MODEL_RANGE` in magnitude are divided by a power of two first (:func:`model_scale`), so
+  any finite return, 1e300 included, keeps the method asking.
 """
 
 from __future__ import annotations
 
 import enum
+import math
 from abc import ABC, abstractmethod
 
 import numpy as np
@@ -31,9 +39,14 @@ import numpy as np
 from corl.errors import InputError, StateError
 from corl.problem import Bounds, Outcome, check_theta
 
-__all__ = ["BlackBoxOptimizer", "StopReason", "as_outcome", "score_of", "ANSWER_TOLERANCE"]
+__all__ = ["BlackBoxOptimizer", "StopReason", "as_outcome", "as_point", "as_rng", "score_of", "model_scale",
+           "ANSWER_TOLERANCE", "MODEL_RANGE"]
 
 ANSWER_TOLERANCE = 5e-3  # a told point answers the proposal within this fraction of the box width
+#: Returns up to this magnitude reach the models as told. Larger ones are divided by a power of two
+#: (exact, :func:`model_scale`): a GP squares its returns' scale (signal variance, ``r @ alpha``),
+#: which overflows beyond about 1e154; 1e100 leaves room for the products on top of that.
+MODEL_RANGE = 1e100
 
 
 class StopReason(str, enum.Enum):
@@ -63,6 +76,50 @@ def score_of(outcome: Outcome, failure_return: float) -> float:
     return float(outcome.return_) if outcome.success else float(failure_return)
 
 
+def model_scale(values) -> float:
+    """The power of two returns ``values`` (d,) are divided by before they reach a model.
+
+    1.0 while every finite value lies within :data:`MODEL_RANGE` (so the usual runs are untouched,
+    bit for bit); else the smallest power of two that brings the largest magnitude within it.
+    Dividing by a power of two is exact, and a GP fitted to standardised returns (``CORL``) proposes
+    the same points in either unit, bit for bit; a GP with fixed hyperparameters (the paper's PIBU,
+    UCB, SAL) was not made for returns past 1e100 in any unit, and now at least keeps proposing.
+    """
+    v = np.asarray(values, dtype=float)
+    v = np.abs(v[np.isfinite(v)])
+    top = float(np.max(v)) if v.size else 0.0
+    if top <= MODEL_RANGE:
+        return 1.0
+    return math.ldexp(1.0, math.frexp(top / MODEL_RANGE)[1])  # 2^e > top / MODEL_RANGE
+
+
+def as_rng(seed) -> np.random.Generator:
+    """A Generator from ``seed``: an integer >= 0, a :class:`numpy.random.Generator` (used as it is) or
+    None (fresh entropy); anything else is an :class:`~corl.errors.InputError`."""
+    if isinstance(seed, np.random.Generator):
+        return seed
+    if seed is not None and (isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer))
+                             or seed < 0):
+        raise InputError(f"seed must be an integer >= 0, a numpy Generator or None, got {type(seed).__name__} "
+                         f"{seed!r:.40}")
+    return np.random.default_rng(seed)
+
+
+def as_point(x, bounds: Bounds, *, name: str, what: str = "x") -> np.ndarray:
+    """``x`` as a point (m,) of ``bounds``, or :class:`~corl.errors.InputError` naming ``what``.
+
+    :func:`corl.problem.check_theta`, with a value that is not numbers at all (a string, a dict)
+    refused in one line too.
+    """
+    try:
+        return check_theta(x, bounds, task=name)
+    except InputError:
+        raise
+    except (TypeError, ValueError):
+        raise InputError(f"{what} must be {bounds.dim} numbers (a point of the box), got "
+                         f"{type(x).__name__} {x!r:.60}") from None
+
+
 def as_outcome(value) -> Outcome:
     """An :class:`Outcome` from an Outcome or a tuple ``(success, return)`` / ``(success, return, info)``.
 
@@ -72,7 +129,11 @@ def as_outcome(value) -> Outcome:
     if isinstance(value, Outcome):
         return value
     if isinstance(value, tuple) and len(value) in (2, 3):
-        return Outcome(*value)
+        try:
+            return Outcome(*value)
+        except OverflowError:  # an int past float's range (10**400): Outcome's float() overflows
+            raise InputError(f"the return must be a finite number, got one too large for a float: "
+                             f"{value[1]!r:.40}") from None
     raise InputError(f"an outcome must be a corl.Outcome or a tuple (success, return), got {type(value).__name__}: "
                      f"{value!r}")
 
@@ -110,7 +171,7 @@ class BlackBoxOptimizer(ABC):
         self.bounds = bounds
         self.max_evals = int(max_evals)
         self.name = name
-        self.start = None if start is None else check_theta(start, bounds, task=name).copy()
+        self.start = None if start is None else as_point(start, bounds, name=name, what="start").copy()
         self._start_open = start is not None  # the start is still to be tried
         m = bounds.dim
         self.X_ = np.empty((0, m))
@@ -118,6 +179,7 @@ class BlackBoxOptimizer(ABC):
         self.returns_ = np.empty(0)
         self._proposal: np.ndarray | None = None  # the next point, once decided
         self._handed_out = False  # True once ask() returned the proposal
+        self._answered: np.ndarray | None = None  # the handed-out point told last, until the next ask()
         self._stop_reason: StopReason | None = None
         self._decided = False
 
@@ -128,23 +190,31 @@ class BlackBoxOptimizer(ABC):
         if self._stop_reason is not None:
             raise StateError(f"{self.name} has stopped ({self._stop_reason.value}): {_EXPLAIN[self._stop_reason]}. "
                              "Check .done before asking; read .best for the result")
-        self._handed_out = True
+        self._handed_out, self._answered = True, None
         return self._proposal.copy()
 
     def tell(self, x: np.ndarray, outcome) -> None:
         """Record the outcome (an :class:`Outcome` or ``(success, return)``) of evaluating ``x`` (m,).
 
-        ``x`` need not have been asked. Bad input raises :class:`~corl.errors.InputError` and
-        records nothing.
+        ``x`` need not have been asked. Bad input raises :class:`~corl.errors.InputError`, and a
+        second answer to the point told last with no ``ask()`` since raises
+        :class:`~corl.errors.StateError`; either records nothing.
         """
-        x = check_theta(x, self.bounds, task=self.name)
+        x = as_point(x, self.bounds, name=self.name)
         outcome = as_outcome(outcome)
+        asked = self._handed_out and self._proposal is not None and self._answers(x, self._proposal)
+        if self._answered is not None and not asked and self._answers(x, self._answered):
+            raise StateError(f"tell() without a pending ask(): {self.name} was told the outcome of "
+                             f"{np.array2string(self._answered, precision=6)} already and nothing was asked "
+                             "since; call ask() first (each asked point is told once)")
         r = np.nan if outcome.return_ is None else float(outcome.return_)
         self.X_ = np.vstack([self.X_, x])
         self.success_ = np.append(self.success_, outcome.success)
         self.returns_ = np.append(self.returns_, r)
         if self._start_open and self._answers(x, self.start):
             self._start_open = False
+        if asked:
+            self._answered = self._proposal  # told once: a second answer before the next ask() is refused
         answered = self._proposal is not None and self._answers(x, self._proposal)
         if answered or not self._handed_out or self.n_evals >= self.max_evals:
             if self._proposal is not None and not answered:

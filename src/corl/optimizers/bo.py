@@ -18,8 +18,8 @@ import numpy as np
 
 from corl.acquisition import PIBU, MaximizerConfig, PIBUConfig, PIBUVariant, maximize, upper_confidence_bound
 from corl.errors import InputError
-from corl.optimizers.base import BlackBoxOptimizer, StopReason
-from corl.optimizers.gpconfig import ClassifierConfig, ModelFitter, RegressionConfig
+from corl.optimizers.base import BlackBoxOptimizer, StopReason, as_rng, model_scale
+from corl.optimizers.gpconfig import SYNTHETIC_CLASSIFIER, SYNTHETIC_REGRESSION, ClassifierConfig, ModelFitter, RegressionConfig
 from corl.problem import Bounds
 
 __all__ = ["PIBUOptimizer", "UCBOptimizer", "StopRule", "BOConfig"]
@@ -33,8 +33,8 @@ class StopRule(str, enum.Enum):
 
 @dataclass(frozen=True)
 class BOConfig:
-    regression: RegressionConfig = field(default_factory=RegressionConfig)
-    classifier: ClassifierConfig = field(default_factory=ClassifierConfig)
+    regression: RegressionConfig = SYNTHETIC_REGRESSION  # the paper's fixed values (Sec. VIII-A)
+    classifier: ClassifierConfig = SYNTHETIC_CLASSIFIER
     maximizer: MaximizerConfig = field(default_factory=MaximizerConfig)
     stop_rule: StopRule = StopRule.NEAR_SAMPLED
     stop_distance: float = 1e-3
@@ -77,7 +77,7 @@ class _BayesOpt(BlackBoxOptimizer):
     def __init__(self, bounds: Bounds, config: BOConfig, *, max_evals: int, seed, name: str, start=None) -> None:
         super().__init__(bounds, max_evals=max_evals, name=name, start=start)
         self.config = config
-        self.rng = np.random.default_rng(seed)
+        self.rng = as_rng(seed)
         self.last_acquisition = None  # the acquisition of the latest ask, for plots
         self.models = ModelFitter(config.regression, config.classifier, bounds)  # fixed or fitted GPs
 
@@ -126,8 +126,9 @@ class PIBUOptimizer(_BayesOpt):
         classifier = self.models.classifier(self.X_, self.success_)
         ok = self.success_ & np.isfinite(self.returns_)
         if np.any(ok):
-            regression = self.models.regression(self.X_[ok], self.returns_[ok])
-            best = float(np.max(self.returns_[ok]))
+            r = self.returns_[ok] / model_scale(self.returns_[ok])  # past MODEL_RANGE: a unit the GP can square
+            regression = self.models.regression(self.X_[ok], r)
+            best = float(np.max(r))
         else:
             regression, best = None, 0.0
         return PIBU(regression, classifier, best, self.pibu)
@@ -153,11 +154,16 @@ class UCBOptimizer(_BayesOpt):
             return None
         y = np.where(self.success_, self.returns_, self.failure_return)
         y = np.where(np.isfinite(y), y, self.failure_return)
-        gp = self.models.regression(self.X_, y)
-        kappa = self.kappa
+        y = y / model_scale(y)  # scores past MODEL_RANGE in a unit the GP can square (base.model_scale)
+        return _UCB(self.models.regression(self.X_, y), self.kappa)
 
-        def ucb(X):
-            mu, var = gp.predict(X)
-            return upper_confidence_bound(mu, var, kappa)
 
-        return ucb
+class _UCB:
+    """UCB of a fitted GP at (s, m) points -> (s,): a class, not a closure, so the optimizer pickles."""
+
+    def __init__(self, gp, kappa: float) -> None:
+        self.gp, self.kappa = gp, kappa
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        mu, var = self.gp.predict(X)
+        return upper_confidence_bound(mu, var, self.kappa)

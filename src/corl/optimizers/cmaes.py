@@ -38,8 +38,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from corl.errors import InputError
-from corl.optimizers.base import BlackBoxOptimizer, StopReason, score_of
-from corl.problem import Bounds, Outcome, check_theta
+from corl.optimizers.base import BlackBoxOptimizer, StopReason, as_point, as_rng, score_of
+from corl.problem import Bounds, Outcome
 
 __all__ = ["CMAES", "CMAESConfig"]
 
@@ -124,10 +124,10 @@ class CMAES(BlackBoxOptimizer):
         super().__init__(bounds, max_evals=max_evals, name="CMA-ES", start=start)
         if not np.isfinite(failure_return):
             raise InputError(f"failure_return must be finite, got {failure_return}")
-        x0 = check_theta(x0, bounds, task=self.name)
+        x0 = as_point(x0, bounds, name=self.name, what="x0")
         self.config = config
         self.failure_return = float(failure_return)
-        self.rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+        self.rng = as_rng(seed)
         options = {
             "bounds": [0.0, 1.0],
             "randn": _GaussianSource(self.rng),

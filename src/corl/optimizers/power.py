@@ -29,8 +29,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from corl.errors import InputError
-from corl.optimizers.base import BlackBoxOptimizer, StopReason, score_of
-from corl.problem import Bounds, Outcome, check_theta
+from corl.optimizers.base import BlackBoxOptimizer, StopReason, as_point, as_rng, score_of
+from corl.problem import Bounds, Outcome
 
 __all__ = ["PoWER", "PoWERConfig", "power_weights"]
 
@@ -82,6 +82,9 @@ def power_weights(scores: np.ndarray, beta: float) -> np.ndarray:
     best set barely moves the mean. Equal scores give equal weights.
     """
     scores = np.asarray(scores, dtype=float)
+    top = float(np.max(np.abs(scores))) if scores.size else 0.0
+    if top > 1e300:  # the difference of two scores near 1.8e308 overflows; the weights are free of the unit
+        scores = scores / top
     spread = float(np.max(scores) - np.min(scores)) if scores.size else 0.0
     if not spread > 0.0:
         return np.ones_like(scores)
@@ -116,8 +119,8 @@ class PoWER(BlackBoxOptimizer):
             raise InputError(f"failure_return must be finite, got {failure_return}")
         self.config = config
         self.failure_return = float(failure_return)
-        self.rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
-        self.mean_ = check_theta(x0, bounds, task=self.name).copy()
+        self.rng = as_rng(seed)
+        self.mean_ = as_point(x0, bounds, name=self.name, what="x0").copy()
         self.std_ = float(config.std)
         self.scores_ = np.empty(0)
 

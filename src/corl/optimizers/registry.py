@@ -25,11 +25,12 @@ import numpy as np
 from corl.acquisition import PIBUConfig, PIBUVariant
 from corl.acquisition.safe_ei import SEIBConfig
 from corl.errors import InputError
-from corl.optimizers.base import BlackBoxOptimizer
+from corl.optimizers.base import BlackBoxOptimizer, as_point, as_rng
 from corl.optimizers.bo import BOConfig, PIBUOptimizer, StopRule, UCBOptimizer
-from corl.optimizers.gpconfig import FITTED_CLASSIFIER, FITTED_REGRESSION, ClassifierConfig, RegressionConfig
+from corl.optimizers.gpconfig import (FITTED_CLASSIFIER, FITTED_REGRESSION, SYNTHETIC_CLASSIFIER,
+                                      SYNTHETIC_REGRESSION, ClassifierConfig, RegressionConfig)
 from corl.optimizers.sal import SALConfig, SALOptimizer
-from corl.problem import Bounds, check_theta
+from corl.problem import Bounds
 
 __all__ = ["OptimizerSettings", "OPTIMIZERS", "register_optimizer", "make_optimizer", "as_bounds"]
 
@@ -62,8 +63,8 @@ class OptimizerSettings:
     :meth:`for_box` scales them to any box.
     """
 
-    regression: RegressionConfig = field(default_factory=RegressionConfig)
-    classifier: ClassifierConfig = field(default_factory=ClassifierConfig)
+    regression: RegressionConfig = SYNTHETIC_REGRESSION  # the paper's fixed values (Sec. VIII-A)
+    classifier: ClassifierConfig = SYNTHETIC_CLASSIFIER
     failure_return: float = -15.0
     ucb_kappa: float = 2.0
     cma_sigma0: float = 0.3
@@ -91,13 +92,17 @@ class OptimizerSettings:
         width = np.asarray(bounds.width, dtype=float)
         ls = tuple(float(v) for v in BOX_LENGTHSCALE * width)
         mean_width = float(np.exp(np.mean(np.log(width))))  # SAL's scalar settings: the geometric mean
-        regression = RegressionConfig(lengthscale=ls)
+        # Fixed GPs scaled to the box: the length scales a tenth of the width, the signal and noise
+        # the paper's synthetic values (returns of order 1-10; "fitted" has no such assumption).
+        regression = RegressionConfig(lengthscale=ls, signal_std=SYNTHETIC_REGRESSION.signal_std,
+                                      noise_std=SYNTHETIC_REGRESSION.noise_std)
         sal = SALConfig(regression=regression, critical_distance=0.08 * mean_width,
                         safety_lengthscale=BOX_LENGTHSCALE * mean_width, stop_distance=1e-3 * mean_width)
         if fitted:
             return cls(regression=FITTED_REGRESSION, classifier=FITTED_CLASSIFIER,
                        distance_scale=tuple(float(v) for v in width), sal=sal)
-        return cls(regression=regression, classifier=ClassifierConfig(lengthscale=ls),
+        return cls(regression=regression, classifier=ClassifierConfig(lengthscale=ls,
+                                                                      signal_std=SYNTHETIC_CLASSIFIER.signal_std),
                    distance_scale=tuple(float(v) for v in width), sal=sal)
 
     def bo(self, stop_rule: StopRule = StopRule.NEAR_SAMPLED) -> BOConfig:
@@ -203,27 +208,29 @@ def make_optimizer(name: str, bounds, start, *, budget: int = 50, seed=None,
     start : (m,) inside the box: the first trial. The safe methods (PIBU, SAL) grow the safe set
         from it, so it should be a point known to succeed.
     budget : trials in all, the start included (>= 1).
-    seed : int, Generator or None.
+    seed : an integer >= 0, a numpy Generator or None.
     settings : :class:`OptimizerSettings`; None takes :meth:`OptimizerSettings.for_box` (with
         ``fitted=True`` for "CORL" and "SEIB"). To change one thing, start from that:
         ``replace(OptimizerSettings.for_box(box, fitted=True), seib=SEIBConfig(far_reach=()))``.
 
     Raises
     ------
-    InputError : unknown name, a flat box, a start outside it, a budget < 1.
+    InputError : unknown name, a flat box, a start outside it (or not numbers), a budget < 1, a
+        seed that is not an integer >= 0 (or a Generator, or None), settings of another type.
     """
-    if name not in OPTIMIZERS:
-        raise InputError(f"unknown optimizer '{name}'; choose one of {', '.join(OPTIMIZERS)}")
+    if not isinstance(name, str) or name not in OPTIMIZERS:
+        raise InputError(f"unknown optimizer {name!r}; choose one of {', '.join(OPTIMIZERS)}")
     box = as_bounds(bounds)
     try:
-        x0 = check_theta(start, box, task=name)
+        x0 = as_point(start, box, name=name, what="start")
     except InputError as exc:
         raise InputError(f"the start is not a point of the box: {exc}") from None
     if isinstance(budget, bool) or not isinstance(budget, (int, np.integer)) or budget < 1:
         raise InputError(f"budget (trials in all, the start included) must be an integer >= 1, got {budget!r}")
+    rng = as_rng(seed)
     if settings is None:  # corl's default (CORL, SEIB) learns its GPs from the data
         settings = OptimizerSettings.for_box(box, fitted=name in FITTED_BY_DEFAULT)
     elif not isinstance(settings, OptimizerSettings):
-        raise InputError(f"settings must be an OptimizerSettings, got {type(settings).__name__}")
-    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+        raise InputError(f"settings must be a corl.OptimizerSettings (e.g. OptimizerSettings.for_box(box)), got "
+                         f"{type(settings).__name__}")
     return OPTIMIZERS[name](box, x0, budget=int(budget), rng=rng, settings=settings)

@@ -21,7 +21,7 @@ import numpy as np
 from corl.acquisition import maximize
 from corl.acquisition.safe_ei import SEIB, SEIBConfig
 from corl.gp.fitting import fit_classifier
-from corl.optimizers.base import StopReason
+from corl.optimizers.base import StopReason, model_scale
 from corl.optimizers.bo import BOConfig, StopRule, _BayesOpt, _stop
 from corl.optimizers.gpconfig import FITTED_CLASSIFIER, FITTED_REGRESSION
 from corl.problem import Bounds
@@ -33,12 +33,16 @@ SAFE_BO_CONFIG = BOConfig(FITTED_REGRESSION, FITTED_CLASSIFIER, stop_rule=StopRu
                           stop_distance=1e-3)
 
 
+_SQUARES_FINITE = 1e150  # below this magnitude a return's square is finite (float64 ends at 1.8e308)
+
+
 def return_scale(returns: np.ndarray) -> float:
     """Spread of the successful returns (d,): their std, or |R| of one of them, or 1."""
     r = np.asarray(returns, dtype=float)
-    if r.size >= 2 and np.std(r) > 1e-12 * max(1.0, float(np.max(np.abs(r)))):
-        return float(np.std(r))
     top = float(np.max(np.abs(r))) if r.size else 0.0
+    spread = float(np.std(r)) if top <= _SQUARES_FINITE else top * float(np.std(r / top))  # r^2 overflows past 1e154
+    if r.size >= 2 and spread > 1e-12 * max(1.0, top):
+        return spread
     return top if top > 0 else 1.0
 
 
@@ -147,16 +151,17 @@ class SafeBOOptimizer(_BayesOpt):
     def _acquisition(self, *, beyond: bool = False, far: bool = False, gated: bool = True,
                      far_beta: float | None = None) -> SEIB:
         ok = self.success_ & np.isfinite(self.returns_)
+        r = self.returns_[ok] / model_scale(self.returns_[ok])  # past MODEL_RANGE: a unit the GP can square
         if self._models is None or self._models[0] != len(self.X_):  # fitted once per ask
             classifier = _Reuse(self.models.classifier(self.X_, self.success_))
-            regression = self.models.regression(self.X_[ok], self.returns_[ok])
+            regression = self.models.regression(self.X_[ok], r)
             self._models = (len(self.X_), None if regression is None else _Reuse(regression), classifier)
         regression, classifier = self._models[1:]
-        best = float(np.max(self.returns_[ok]))
+        best = float(np.max(r))
         if far and self.seib.far_lengthscale is not None:
             classifier = self._far_look_classifier()
         seib = self.seib if far_beta is None else replace(self.seib, far_beta=far_beta)
-        return SEIB(regression, classifier, best, return_scale(self.returns_[ok]), seib, gated=gated,
+        return SEIB(regression, classifier, best, return_scale(r), seib, gated=gated,
                     beyond=beyond, far=far, box=(self.bounds.lower, self.bounds.upper))
 
     def _far_look_classifier(self):

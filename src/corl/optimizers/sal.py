@@ -27,9 +27,9 @@ import numpy as np
 from corl.acquisition import MaximizerConfig, maximize, upper_confidence_bound
 from corl.errors import InputError
 from corl.numerics import floor_variance, ndtr
-from corl.optimizers.base import BlackBoxOptimizer, StopReason
+from corl.optimizers.base import BlackBoxOptimizer, StopReason, as_outcome, as_rng, model_scale
 from corl.optimizers.bo import StopRule, _stop
-from corl.optimizers.gpconfig import RegressionConfig
+from corl.optimizers.gpconfig import SYNTHETIC_REGRESSION, RegressionConfig
 from corl.problem import Bounds
 
 __all__ = ["SALConfig", "SALOptimizer"]
@@ -37,7 +37,7 @@ __all__ = ["SALConfig", "SALOptimizer"]
 
 @dataclass(frozen=True)
 class SALConfig:
-    regression: RegressionConfig = field(default_factory=RegressionConfig)
+    regression: RegressionConfig = SYNTHETIC_REGRESSION  # the paper's fixed values (Sec. VIII-A)
     critical_distance: float = 0.5
     safety_lengthscale: float = 0.4
     safety_noise: float = 0.02
@@ -64,8 +64,23 @@ class SALOptimizer(BlackBoxOptimizer):
                  start=None) -> None:
         super().__init__(bounds, max_evals=max_evals, name="SAL", start=start)
         self.config = config
-        self.rng = np.random.default_rng(seed)
+        self.rng = as_rng(seed)
         self.safety_ = np.empty(0)
+
+    def tell(self, x, outcome) -> None:
+        """As :meth:`BlackBoxOptimizer.tell`; ``info["boundary_distance"]``, when given on a success,
+        must be a finite number (else :class:`~corl.errors.InputError`, nothing recorded)."""
+        outcome = as_outcome(outcome)
+        dist = outcome.info.get("boundary_distance") if outcome.success and outcome.info else None
+        if dist is not None:
+            try:
+                ok = not isinstance(dist, (bool, np.bool_)) and np.isfinite(float(dist))
+            except (TypeError, ValueError, OverflowError):
+                ok = False
+            if not ok:
+                raise InputError(f"info['boundary_distance'] must be a finite number (the distance to the boundary "
+                                 f"of the safe set) or left out, got {dist!r:.40}")
+        super().tell(x, outcome)
 
     def _observe(self, x, outcome) -> None:
         d_crit = self.config.critical_distance
@@ -94,7 +109,8 @@ class SALOptimizer(BlackBoxOptimizer):
             return (self.bounds.lower + self.bounds.upper) / 2.0
         cfg = self.config
         ok = self.success_ & np.isfinite(self.returns_)  # not empty: needs_success (base class)
-        reg = cfg.regression.build().fit(self.X_[ok], self.returns_[ok])
+        r = self.returns_[ok]
+        reg = cfg.regression.build().fit(self.X_[ok], r / model_scale(r))  # returns past MODEL_RANGE scaled down
         safety = self.safety_model()
         threshold = 1.0 - cfg.alpha
 

@@ -63,6 +63,12 @@ class SyntheticTask:
     def demonstration(self) -> Demonstration:
         return Demonstration(self.w0.copy(), self.theta_of(self.w0))
 
+    def method_settings(self):
+        """The paper's fixed GP values and budgets for this benchmark (Sec. VIII-A, Fig. 1)."""
+        from corl.settings import PAPER_SYNTHETIC
+
+        return PAPER_SYNTHETIC
+
     def cost_residuals(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         r = w[0] * w[0] + w[1] * w[1] - 1.0
         return np.array([r]), np.array([[2.0 * w[0], 2.0 * w[1]]])

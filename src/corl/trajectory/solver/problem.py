@@ -25,6 +25,7 @@ from typing import Any, Callable, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
+from corl import checks
 from corl.errors import InputError
 
 __all__ = [
@@ -105,6 +106,7 @@ class SolverMethod(str, Enum):
     SQP = "sqp"
 
 
+@checks.keywords()
 @dataclass(frozen=True)
 class SolverConfig:
     """Settings of :func:`~corl.trajectory.solver.solve`.
