@@ -40,7 +40,8 @@ def number(name: str, value: Any, *, low: float = -math.inf, high: float = math.
         raise InputError(f"{name} must be a finite number, got {value!r}")
     if v < low or v > high or (low_open and v == low):
         lo = "(" if low_open else "["
-        raise InputError(f"{name} must be in {lo}{low:g}, {high:g}], got {value!r}")
+        hi = f"{high:g}]" if math.isfinite(high) else "inf)"
+        raise InputError(f"{name} must be in {lo}{low:g}, {hi}, got {value!r}")
     return v
 
 
