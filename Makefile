@@ -1,7 +1,7 @@
 # The two commands the README opens with: `make demo` and `make test`.
 # Each creates .venv from scratch when missing and installs what it needs, at the exact versions
-# of constraints.txt (the published numbers). pyproject.toml declares ranges; `make test-lowest`
-# installs the lowest of them (constraints-lowest.txt) in .venv-lowest and runs the fast tests.
+# of constraints.txt (the published numbers). pyproject.toml declares ranges; `make test-lowest` and
+# `make test-latest` run the whole suite at the lowest and at the newest versions they allow.
 PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
@@ -11,7 +11,7 @@ export OPENBLAS_NUM_THREADS ?= 1
 export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
-.PHONY: demo test test-fast test-lowest constraints bench synthetic docs clean
+.PHONY: demo test test-fast test-lowest test-latest constraints bench synthetic docs clean
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
@@ -31,7 +31,9 @@ test: $(STAMP)
 test-fast: $(STAMP)
 	$(PY) -m pytest -q -m "not slow"
 
-# The lowest declared versions (CI runs it after `make test`): the fast tests only.
+# Both ends of every range pyproject.toml declares (CI runs both after `make test`), the whole suite
+# each time, slow tests included: the lowest versions (constraints-lowest.txt, pinned) and the newest
+# ones pip resolves today (no constraints, resolved afresh on every run, printed in the log).
 LOWEST := .venv-lowest
 LOWEST_STAMP := $(LOWEST)/.installed
 $(LOWEST_STAMP): pyproject.toml constraints-lowest.txt
@@ -41,9 +43,21 @@ $(LOWEST_STAMP): pyproject.toml constraints-lowest.txt
 	$(LOWEST)/bin/python -m pip install --quiet -c constraints-lowest.txt -e ".[test]"
 	touch $(LOWEST_STAMP)
 
+VERSIONS := import corl.versions as v; print(' '.join(f'{k} {x}' for k, x in v.library_versions().items()))
+
 test-lowest: $(LOWEST_STAMP)
-	$(LOWEST)/bin/python -c "import numpy, scipy, mujoco; print('lowest: numpy', numpy.__version__, 'scipy', scipy.__version__, 'mujoco', mujoco.__version__)"
-	$(LOWEST)/bin/python -m pytest -q -m "not slow" -p no:cacheprovider
+	@echo "lowest versions:"; $(LOWEST)/bin/python -c "$(VERSIONS)"
+	$(LOWEST)/bin/python -m pytest -q -p no:cacheprovider
+
+# Always a fresh venv: "newest" means what pip resolves now, not what it resolved last time.
+LATEST := .venv-latest
+test-latest:
+	rm -rf $(LATEST)
+	$(PYTHON) -m venv $(LATEST)
+	$(LATEST)/bin/python -m pip install --quiet --upgrade pip
+	$(LATEST)/bin/python -m pip install --quiet --upgrade --upgrade-strategy eager -e ".[test]"
+	@echo "newest versions:"; $(LATEST)/bin/python -c "$(VERSIONS)"
+	$(LATEST)/bin/python -m pytest -q -p no:cacheprovider
 
 # Regenerate constraints.txt from .venv (after upgrading on purpose; the published numbers move with it).
 constraints: $(STAMP)
@@ -66,4 +80,4 @@ docs: $(DOCS_STAMP)
 	$(PY) docs/build_api.py docs/api
 
 clean:
-	rm -rf $(VENV) $(LOWEST) results build docs/api *.egg-info src/*.egg-info
+	rm -rf $(VENV) $(LOWEST) $(LATEST) results build docs/api *.egg-info src/*.egg-info
