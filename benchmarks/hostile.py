@@ -1,12 +1,17 @@
 """Every bad input of issue 13 against every ``corl`` subcommand, typed as a user would (subprocess).
 
 Each case runs in a fresh folder holding a store (``s.corl``: the synthetic task, trial 0 told,
-trial 1 pending), a store whose demonstration is pending (``demo.corl``), a plain file
-(``afile.txt``) and a user task module (``usertask.py``, whose rollouts leave ``rollouts.txt``).
+trial 1 pending), a store whose demonstration is pending (``demo.corl``), a finished run
+(``fin.corl``), a plain file (``afile.txt``) and a user task module (``usertask.py``, whose
+rollouts leave ``rollouts.txt``; some of its factories raise, exit or build tasks whose rollout
+does). A few cases run under a resource limit: a file-size limit stands for a full disk (writes
+past it fail with EFBIG, no root needed), an address-space limit turns a runaway allocation into
+a MemoryError instead of the kernel's OOM kill.
 The table shows per case: the command, the input, the exit code, the first line of stderr,
-whether every store is unchanged (its SQL dump, or its bytes when it is no store), whether the
-command left any new file or folder behind, and whether a traceback (or an "internal error")
-reached the user. The last line counts tracebacks; it must read 0.
+whether every store is unchanged (its bytes and its modification time: a refused command must
+not even rewrite SQLite's header), whether the command left any new file or folder behind, and
+whether a traceback (or an "internal error") reached the user. The last lines count tracebacks
+and refused commands that changed a store; both must read 0.
 
     PYTHONPATH=src python benchmarks/hostile.py            # every case (~100, about a minute)
     PYTHONPATH=src python benchmarks/hostile.py --fast     # the subset tests/test_hostile.py runs
@@ -41,9 +46,11 @@ def _env() -> dict[str, str]:
 
 def user_task_source(name: str) -> str:
     """A user task module: ``make`` builds a synthetic task called ``name`` that counts its rollouts in
-    ``rollouts.txt`` beside the module; ``boom`` raises and ``not_a_task`` returns 42."""
+    ``rollouts.txt`` beside the module; ``boom`` raises, ``not_a_task`` returns 42, ``exits`` calls
+    sys.exit(0); ``burning`` and ``leaving`` build tasks whose rollout raises or calls sys.exit(0)."""
     return f"""
 import pathlib
+import sys
 from corl.tasks.synthetic import SyntheticTask
 
 class Counting(SyntheticTask):
@@ -61,6 +68,23 @@ def boom():
 
 def not_a_task():
     return 42
+
+def exits():
+    sys.exit(0)
+
+class Burning(Counting):
+    def rollout(self, w):
+        raise RuntimeError("the robot is on fire")
+
+class Leaving(Counting):
+    def rollout(self, w):
+        sys.exit(0)
+
+def burning():
+    return Burning((0.6, 0.4))
+
+def leaving():
+    return Leaving((0.6, 0.4))
 """
 
 
@@ -88,6 +112,12 @@ class Case:
     label: str
     args: tuple[str, ...]
     damage: str | None = None  # which damage to apply to s.corl first
+    limits: tuple[tuple[str, int], ...] = ()  # (RLIMIT_ name, bytes) the command runs under
+
+
+FULL_DISK = (("FSIZE", 4096),)  # no file grows past 4 kB: a disk that fills up while a result is written
+MEMORY_CAP = (("AS", 4 * 2**30),)  # a runaway allocation is a MemoryError, not the OOM killer
+STORES = ("s.corl", "demo.corl", "fin.corl")
 
 
 @dataclass
@@ -167,8 +197,54 @@ def cases() -> list[Case]:
         Case("bench door", "--out FILE", ("bench", "door", "--out", "afile.txt")),
         Case("bench door", "--grid 1x0", ("bench", "door", "--grid", "1x0", "--out", "d")),
         Case("bench door", "--force-noise nan", ("bench", "door", "--force-noise", "nan", "--out", "d")),
+        Case("bench synthetic", "--methods ','", ("bench", "synthetic", "--methods", ",", "--out", "b")),
+        Case("bench synthetic", "--starts 200000000", ("bench", "synthetic", "--starts", "200000000", "--out", "b")),
+        *_sweep_cases(), *_run_cases(),
     ]
     return out
+
+
+def _sweep_cases() -> list[Case]:
+    def sweep(label: str, *args: str, task: str = "synthetic", limits=()) -> Case:
+        return Case("sweep", label, ("sweep", task, "-q", *args), limits=limits)
+
+    return [
+        sweep("--jobs 0", "--grid", "5", "--jobs", "0", "--out", "sw"),
+        sweep("--seed -1", "--grid", "5", "--seed", "-1", "--out", "sw"),
+        sweep("--out FILE", "--grid", "5", "--out", "afile.txt"),
+        sweep("--out read-only place", "--grid", "5", "--out", "/proc/corl-hostile-sweep"),
+        sweep("--grid 1000000000", "--grid", "1000000000", "--out", "sw", limits=MEMORY_CAP),
+        sweep("--grid 1x0", "--grid", "1x0", "--out", "sw"),
+        sweep("full disk", "--grid", "400", "--out", "sw", limits=FULL_DISK),
+        sweep("task ':'", "--grid", "5", "--out", "sw", task=":"),
+        sweep("factory sys.exit(0)", "--grid", "5", "--out", "sw", task="usertask:exits"),
+        sweep("rollout raises", "--grid", "5", "--out", "sw", task="usertask:burning"),
+        sweep("rollout sys.exit(0)", "--grid", "5", "--out", "sw", task="usertask:leaving"),
+        sweep("rollout raises, --jobs 2", "--grid", "5", "--out", "sw", "--jobs", "2", task="usertask:burning"),
+    ]
+
+
+def _run_cases() -> list[Case]:
+    """The stored-run refusals of the hostile pass of issue 14: flags that differ from the stored run, a
+    finished run, a return Python reads too generously, user code that exits, a full disk."""
+    tell = ("tell", "--store", "s.corl", "--success", "yes", "--return")
+    return [
+        Case("ask", "--method/--seed other", ("ask", "--store", "s.corl", "--task", "synthetic", "--raw",
+                                              "--method", "CORL+UCB", "--seed", "7")),
+        Case("ask", "finished run", ("ask", "--store", "fin.corl", "--task", "synthetic", "--raw")),
+        Case("ask", "factory sys.exit(0)", ("ask", "--store", "s.corl", "--task", "usertask:exits", "--raw")),
+        Case("tell", "--return 1_000", (*tell, "1_000", "--task", "synthetic")),
+        Case("tell", "factory sys.exit(0)", (*tell, "0.1", "--task", "usertask:exits")),
+        Case("tell", "nothing pending", ("tell", "--store", "fin.corl", "--task", "synthetic", "--success", "no")),
+        Case("run --resume", "--method other", ("run", "synthetic", "--store", "s.corl", "--resume", "--method",
+                                                "CORL+CMA", "--out", "o", "-q")),
+        Case("run --resume", "factory sys.exit(0)", ("run", "usertask:exits", "--store", "s.corl", "--resume",
+                                                     "--out", "o", "-q")),
+        Case("report", "full disk (figures)", ("report", "--store", "s.corl", "--out", "rep", "--no-video",
+                                               "--task", "synthetic", "-q"), limits=FULL_DISK),
+        Case("report", "full disk (page)", ("report", "--store", "demo.corl", "--out", "rep", "--no-video", "-q"),
+             limits=FULL_DISK),  # nothing told yet, no --task: no figure, the page itself hits the limit
+    ]
 
 
 # The subset tests/test_hostile.py runs: one case of each kind, every subcommand at least once.
@@ -176,7 +252,10 @@ FAST = {("status", "store: config not JSON"), ("export", "store: w_shape not JSO
         ("run --resume", "store: versions a list"), ("run", "task ':'"), ("ask", "task '..:x'"),
         ("tell", "task 'usertask:boom'"), ("report", "task 'usertask:not_a_task'"), ("run", "--seed -1"),
         ("ask", "--rate 1e12"), ("export", "--out DIR"), ("tell", "demonstration --success no"),
-        ("tell", "--success no --return 0.3"), ("bench synthetic", "--jobs 0"), ("bench door", "--jobs 0")}
+        ("tell", "--success no --return 0.3"), ("bench synthetic", "--jobs 0"), ("bench door", "--jobs 0"),
+        ("sweep", "--jobs 0"), ("sweep", "rollout raises"), ("sweep", "full disk"), ("ask", "--method/--seed other"),
+        ("ask", "finished run"), ("tell", "--return 1_000"), ("tell", "factory sys.exit(0)"),
+        ("report", "full disk (figures)"), ("report", "full disk (page)"), ("bench synthetic", "--methods ','")}
 
 
 def prepare(folder: Path) -> None:
@@ -193,6 +272,10 @@ def prepare(folder: Path) -> None:
     shutil.copy(folder / "demo.corl", folder / "s.corl")
     corl("tell", "--store", "s.corl", "--task", "synthetic", "--success", "yes", "--return", "0.2")
     corl("ask", "--store", "s.corl", "--task", "synthetic", "--out", "trials", "--raw")
+    shutil.copy(folder / "s.corl", folder / "fin.corl")  # a run marked finished, as `corl run` leaves one
+    with contextlib.closing(sqlite3.connect(folder / "fin.corl")) as db, db:
+        db.execute("DELETE FROM trials WHERE trial_index = 1")  # nothing pending
+        db.execute("UPDATE runs SET status = 'finished'")
 
 
 def _damage(store: Path, damage: str) -> None:
@@ -206,19 +289,20 @@ def _damage(store: Path, damage: str) -> None:
             db.execute(spec)
 
 
-def _state(folder: Path) -> tuple[list[str], dict[str, object]]:
-    """(every path under ``folder``, each store's content: its SQL dump, or its bytes if it is no store)."""
+def _state(folder: Path) -> tuple[list[str], dict[str, tuple[bytes, int]]]:
+    """(every path under ``folder``, each store's bytes and modification time in ns)."""
     paths = sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if "__pycache__" not in p.parts)
-    stores = {}
-    for name in ("s.corl", "demo.corl"):
-        path = folder / name
-        try:
-            uri = f"{path.resolve().as_uri()}?mode=ro&immutable=1"  # creates no -wal or -shm file
-            with contextlib.closing(sqlite3.connect(uri, uri=True)) as db:
-                stores[name] = list(db.iterdump())
-        except sqlite3.Error:
-            stores[name] = path.read_bytes()
+    stores = {name: ((folder / name).read_bytes(), (folder / name).stat().st_mtime_ns) for name in STORES}
     return paths, stores
+
+
+def _command(case: Case) -> list[str]:
+    """The command line of ``case``: ``python -m corl.cli ...``, under its resource limits if it has any."""
+    if not case.limits:
+        return CORL + list(case.args)
+    limits = "; ".join(f"resource.setrlimit(resource.RLIMIT_{name}, ({value}, {value}))" for name, value in case.limits)
+    launcher = f"import resource, sys; {limits}; from corl.cli import main; sys.argv[0] = 'corl'; sys.exit(main())"
+    return [sys.executable, "-c", launcher, *case.args]
 
 
 def run_case(case: Case, template: Path) -> Result:
@@ -228,8 +312,7 @@ def run_case(case: Case, template: Path) -> Result:
         if case.damage is not None:
             _damage(folder / "s.corl", case.damage)
         paths, stores = _state(folder)
-        res = subprocess.run(CORL + list(case.args), cwd=folder, env=_env(), capture_output=True, text=True,
-                             timeout=300)
+        res = subprocess.run(_command(case), cwd=folder, env=_env(), capture_output=True, text=True, timeout=300)
         after_paths, after_stores = _state(folder)
         left = sorted(set(after_paths) - set(paths))
         lines = res.stderr.strip().splitlines()
@@ -266,13 +349,15 @@ def main() -> int:
     tracebacks = sum(r.traceback for r in results)
     succeeded = sum(r.code == 0 for r in results)
     changed = sum(not r.unchanged for r in results)
+    changed_refused = sum(not r.unchanged and r.code != 0 for r in results)
     left = sum(bool(r.left) for r in results)
-    print(f"\n{len(results)} cases: {tracebacks} tracebacks, {succeeded} accepted (exit 0), "
-          f"{changed} changed a store, {left} left files behind")
+    print(f"\n{len(results)} cases: {tracebacks} tracebacks or internal errors, {succeeded} accepted (exit 0), "
+          f"{changed} changed a store's bytes or mtime ({changed_refused} of them refused), {left} left files behind")
     for r in results:
-        if r.left:
-            print(f"  {r.case.command} {r.case.label}: left {', '.join(r.left)}")
-    return 1 if tracebacks else 0
+        if r.left or (not r.unchanged and r.code != 0):
+            print(f"  {r.case.command} {r.case.label}: exit {r.code}, "
+                  f"{'left ' + ', '.join(r.left) if r.left else 'changed a store'}")
+    return 1 if tracebacks or changed_refused else 0
 
 
 if __name__ == "__main__":

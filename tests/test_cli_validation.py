@@ -70,8 +70,15 @@ BAD_RUNS = [
     (["bench", "synthetic", "--jobs", "0", "--starts", "1", "--out", "b"], "--jobs must be"),
     (["bench", "synthetic", "--seed", "-1", "--starts", "1", "--out", "b"], "--seed must be"),
     (["bench", "synthetic", "--starts", "1", "--out", "afile.txt"], "is a file"),
+    (["bench", "synthetic", "--methods", ",", "--starts", "1", "--out", "b"], "--methods ',' names no method"),
+    (["bench", "synthetic", "--methods", " , ,", "--starts", "1", "--out", "b"], "names no method"),
+    # --out afile.txt too: without the cap the command would run for days, so a regression fails fast here
+    (["bench", "synthetic", "--starts", "200000000", "--out", "afile.txt"], "--starts must be a number of starts in "
+                                                                            "[1, 100000], got 200000000"),
+    (["bench", "synthetic", "--starts", "0", "--out", "b"], "--starts must be"),
     (["bench", "door", "--jobs", "0", "--out", "d"], "--jobs must be"),
     (["bench", "door", "--force-noise", "inf", "--out", "d"], "--force-noise"),
+    (["bench", "door", "--grid", "2000x2000", "--out", "d"], "makes 4000000 grid points; a sweep takes at most"),
     (["ask", "--store", "new/s.corl", "--task", "usertask:make", "--seed", "-1"], "--seed must be"),
     (["ask", "--store", "new/s.corl", "--task", ":"], "is not an import path"),
     (["ask", "--store", "new/s.corl", "--task", "usertask:boom"], "the factory broke"),
@@ -89,6 +96,10 @@ BAD_RUNS = [
     (["tell", "--store", "s.corl", "--task", "synthetic", "--success", "no", "--return", "0.3"],
      "a failed trial is told without a return"),
     (["tell", "--store", "s.corl", "--task", ":", "--success", "yes", "--return", "0.3"], "is not an import path"),
+    (["tell", "--store", "s.corl", "--task", "synthetic", "--success", "yes", "--return", "1_000"],
+     "--return must be a plain finite number"),
+    (["tell", "--store", "s.corl", "--task", "synthetic", "--success", "yes", "--return", "\u0661\u0662"],
+     "--return must be a plain finite number"),  # Arabic-Indic digits, which float() reads as 12
 ]
 
 
@@ -154,3 +165,25 @@ def test_an_unexpected_error_is_one_line_from_the_entry_point(workdir, monkeypat
     assert exit_info.value.code == 1
     err = capsys.readouterr().err
     assert err.startswith("error: internal error ZeroDivisionError: a bug") and len(err.splitlines()) == 1
+
+
+def test_plain_number_takes_decimal_notation_only():
+    from corl.arguments import plain_number
+    from corl.errors import InputError
+
+    for text, value in (("0.25", 0.25), ("-1.5e3", -1500.0), ("+3", 3.0), (".5", 0.5), ("5.", 5.0), (" 2 ", 2.0)):
+        assert plain_number("--return", text) == pytest.approx(value, rel=1e-15)
+    for text in ("1_000", "nan", "-inf", "infinity", "0x10", "1e999", "", "1e", ".", "--1", "\u0661"):
+        with pytest.raises(InputError, match="--return must be"):
+            plain_number("--return", text)
+
+
+def test_starts_are_capped_at_a_documented_maximum():
+    from corl.arguments import MAX_STARTS, check
+    from corl.errors import InputError
+
+    check(starts=("--starts", MAX_STARTS))
+    with pytest.raises(InputError, match=f"in \\[1, {MAX_STARTS}\\]"):
+        check(starts=("--starts", MAX_STARTS + 1))
+    res = runner.invoke(app, ["bench", "synthetic", "--help"], env={"COLUMNS": "300"})
+    assert f"at most {MAX_STARTS}" in res.output

@@ -1,5 +1,6 @@
 """benchmarks/hostile.py's fast subset: bad input to every subcommand, typed as a user would
-(subprocess): a one-line error and exit 2, no traceback, every store unchanged, nothing left behind."""
+(subprocess): a one-line error and exit 2, no traceback, every store unchanged (bytes and modification
+time), nothing left behind."""
 
 from __future__ import annotations
 

@@ -43,21 +43,30 @@ def _build(task: Task, method: str, seed: int, corl_overrides: dict | None = Non
 
 
 class StoredRun:
-    """An ask/tell learner whose trials are committed to ``store`` under ``run_id``."""
+    """An ask/tell learner whose trials are committed to ``store`` under ``run_id``.
 
-    def __init__(self, learner, store: RunStore, run_id: int) -> None:
+    A command that may still be refused builds the run first and writes nothing: a new run with
+    :meth:`new`, an existing one with :meth:`open` on a read-only store. Only once the command is
+    accepted does it open the store for writing and :meth:`attach` the run to it, so a refused
+    command leaves the store file untouched, its bytes and its modification time.
+    """
+
+    def __init__(self, learner, store: RunStore | None, run_id: int | None) -> None:
         self.learner = learner
         self.store = store
         self.run_id = run_id
+        self._record: dict | None = None  # what create_run stores, for a run not in a store yet
+        self._seen: tuple | None = None  # the stored run as it was read: trials, outcomes, status
 
     # -- creating and reopening ----------------------------------------------------------------
     @classmethod
-    def start(cls, store: RunStore, task: Task, *, task_spec: str, method: str, seed: int,
-              corl_overrides: dict | None = None) -> "StoredRun":
-        """A new run of ``method`` on ``task`` (``task_spec`` is how the command line named it).
+    def new(cls, task: Task, *, task_spec: str, method: str, seed: int,
+            corl_overrides: dict | None = None) -> "StoredRun":
+        """A new run of ``method`` on ``task``, in no store yet (:meth:`attach` creates it there).
 
-        ``corl_overrides`` (e.g. ``{"rollout_every_step": False}``) replace fields of the task's
-        CORLConfig; they are stored with the run and applied again when it is reopened.
+        ``task_spec`` is how the command line named the task; ``corl_overrides`` (e.g.
+        ``{"rollout_every_step": False}``) replace fields of the task's CORLConfig, are stored with
+        the run and applied again when it is reopened. A method that cannot run the task raises here.
         """
         learner = _build(task, method, seed, corl_overrides)
         config = {"task_spec": task_spec, "task_name": task.name}
@@ -66,12 +75,22 @@ class StoredRun:
         cfg = getattr(learner, "config", None)
         if cfg is not None:
             config["learner"] = _plain(asdict(cfg))
-        run_id = store.create_run(task=task.name, method=method, seed=seed, config=config)
-        return cls(learner, store, run_id)
+        run = cls(learner, None, None)
+        run._record = {"task": task.name, "method": method, "seed": seed, "config": config}
+        return run
+
+    @classmethod
+    def start(cls, store: RunStore, task: Task, *, task_spec: str, method: str, seed: int,
+              corl_overrides: dict | None = None) -> "StoredRun":
+        """A new run created in ``store`` now (:meth:`new`, then :meth:`attach`)."""
+        return cls.new(task, task_spec=task_spec, method=method, seed=seed, corl_overrides=corl_overrides).attach(store)
 
     @classmethod
     def open(cls, store: RunStore, task: Task, run_id: int | None = None) -> "StoredRun":
-        """Reopen a run (default: the latest one) and replay its trials into a fresh learner."""
+        """Reopen a run (default: the latest one) and replay its trials into a fresh learner.
+
+        ``store`` may be read-only: the replay only reads; :meth:`attach` a writer to go on.
+        """
         info = store.run(run_id) if run_id is not None else store.latest_run()
         if info is None:
             raise StoreError(f"{store.path} holds no run yet; start one with 'corl run' or 'corl ask --task ...'")
@@ -81,26 +100,47 @@ class StoredRun:
         learner = _build(task, info.method, 0 if info.seed is None else int(info.seed),
                          info.config.get("corl_overrides"))
         replay(learner, store, info.id)
-        return cls(learner, store, info.id)
+        run = cls(learner, store, info.id)
+        run._seen = _snapshot(info)
+        return run
+
+    def attach(self, store: RunStore) -> "StoredRun":
+        """Commit to ``store`` from now on: create the run there when it is new; a reopened run must be
+        as it was read (:meth:`open`), else another process wrote it meanwhile and StoreError says so."""
+        if self.run_id is None:
+            self.run_id = store.create_run(**self._record)
+        elif _snapshot(store.run(self.run_id)) != self._seen:
+            raise StoreError(f"run {self.run_id} in {store.path} changed while this command read it (another "
+                             "process wrote to it); nothing was written: run the command again")
+        self.store = store
+        return self
 
     # -- ask / tell ----------------------------------------------------------------------------
     def ask(self) -> Proposal:
-        proposal = self.learner.ask()
-        self.store.add_proposal(self.run_id, proposal)  # committed before it is handed out
+        return self.hand_out(self.learner.ask())
+
+    def hand_out(self, proposal: Proposal) -> Proposal:
+        """Commit ``proposal``, which ``learner.ask()`` returned, before it is handed out."""
+        self.store.add_proposal(self.run_id, proposal)
         return proposal
 
-    def tell(self, outcome: Outcome) -> None:
-        """Commit the outcome of the pending trial, then tell the learner.
-
-        An outcome the learner would refuse is refused before anything is written: a failed
-        demonstration (Algorithm 1 needs a successful one) leaves the store as it was.
-        """
+    def check(self, outcome: Outcome):
+        """The pending trial ``outcome`` answers, or what :meth:`tell` would refuse; writes nothing."""
         if not isinstance(outcome, Outcome):
             raise InputError(f"tell() needs a corl.Outcome, got {type(outcome).__name__}")
         pending = self.store.pending(self.run_id)
         if pending is None:
             raise StateError("there is no pending trial to tell: run 'corl ask' first")
         _check_outcome(self.learner, pending.proposal, outcome)
+        return pending
+
+    def tell(self, outcome: Outcome) -> None:
+        """Commit the outcome of the pending trial, then tell the learner.
+
+        An outcome the learner would refuse is refused before anything is written (:meth:`check`):
+        a failed demonstration (Algorithm 1 needs a successful one) leaves the store as it was.
+        """
+        pending = self.check(outcome)
         self.store.add_outcome(self.run_id, pending.index, outcome)  # committed before the learner moves on
         try:
             self.learner.tell(outcome)
@@ -127,6 +167,11 @@ class StoredRun:
         if self.done:
             self.store.set_status(self.run_id, RunStatus.FINISHED)
         return self.best
+
+
+def _snapshot(info) -> tuple:
+    """What tells whether a stored run changed: its trials, outcomes and status."""
+    return info.n_trials, info.n_told, info.status
 
 
 def _check_outcome(learner, proposal: Proposal, outcome: Outcome) -> None:

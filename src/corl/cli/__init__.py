@@ -17,6 +17,7 @@ import sys
 import typer
 
 from corl.cli import bench, learn, store
+from corl.cli.common import refuse_exit
 
 __all__ = ["app", "main"]
 
@@ -25,16 +26,11 @@ app = typer.Typer(add_completion=False, no_args_is_help=True,
 bench_app = typer.Typer(no_args_is_help=True, help="Benchmarks that reproduce the paper's tables.")
 app.add_typer(bench_app, name="bench")
 
-bench_app.command("synthetic")(bench.bench_synthetic)
-bench_app.command("door")(bench.bench_door)
-app.command("sweep")(bench.sweep)
-app.command("run")(learn.run)
-app.command("ask")(learn.ask)
-app.command("tell")(learn.tell)
-app.command("status")(store.status)
-app.command("runs")(store.runs)
-app.command("export")(store.export)
-app.command("report")(store.report)
+for group, name, command in ((bench_app, "synthetic", bench.bench_synthetic), (bench_app, "door", bench.bench_door),
+                             (app, "sweep", bench.sweep), (app, "run", learn.run), (app, "ask", learn.ask),
+                             (app, "tell", learn.tell), (app, "status", store.status), (app, "runs", store.runs),
+                             (app, "export", store.export), (app, "report", store.report)):
+    group.command(name)(refuse_exit(command))  # a task's sys.exit() is an error, not a silent exit
 
 
 def main() -> None:

@@ -8,16 +8,17 @@ from typing import Optional
 
 import typer
 
-from corl.arguments import NEW_PATHS
+from corl.arguments import MAX_STARTS, NEW_PATHS
 from corl.cli.common import (
-    ADDRESS, BACKEND, JSON_OUT, LOG, QUIET, check_args, fail, method_list, print_json, progress_tracker, write_json,
+    ADDRESS, BACKEND, JSON_OUT, LOG, QUIET, check_args, fail, make_folder, method_list, print_json, progress_tracker,
+    write_json,
 )
 
 __all__ = ["bench_synthetic", "bench_door", "sweep"]
 
 
 def bench_synthetic(
-    starts: int = typer.Option(100, help="random feasible starts per method"),
+    starts: int = typer.Option(100, help=f"random feasible starts per method, at most {MAX_STARTS}"),
     seed: int = typer.Option(0, help="seed of the starts and the methods"),
     out: Path = typer.Option(Path("results/synthetic"), help="output folder for synthetic.json"),
     methods: Optional[str] = typer.Option(None, help="comma-separated method names (default: the 8 of Fig. 1)"),
@@ -37,9 +38,7 @@ def bench_synthetic(
     from corl.versions import library_versions
 
     names = method_list(methods, default=list(PAPER_FIG1), allowed=METHODS)
-    if starts < 1:
-        fail("--starts must be at least 1")
-    check_args(seed=("--seed", seed), jobs=("--jobs", jobs), folder=("--out", out))
+    check_args(starts=("--starts", starts), seed=("--seed", seed), jobs=("--jobs", jobs), folder=("--out", out))
     NEW_PATHS.track(out)
     t0 = time.perf_counter()
     with progress_tracker("bench synthetic", quiet=quiet, log=log, json_out=json_out) as tracker:
@@ -85,6 +84,7 @@ def bench_door(
     from corl.errors import CorlError
     from corl.experiments.door import DOOR_METHODS, door_sweep
     from corl.experiments.figures import plot_trial_curves
+    from corl.experiments.sweep import check_grid
     from corl.experiments.tables import curves_table, door_table
     from corl.tasks.door.task import FORCE_REFERENCE
     from corl.versions import library_versions
@@ -100,6 +100,10 @@ def bench_door(
         fail(f"--grid must look like 25x15, got {grid!r}")
     if min(n1, n2) < 2:
         fail(f"--grid needs at least 2 points per axis, got {grid!r}")
+    try:  # the safe regions are sweeps: the same cap, checked before the runs
+        check_grid((n1, n2), 2, what=f"--grid {grid!r}")
+    except CorlError as exc:
+        fail(str(exc))
     check_args(jobs=("--jobs", jobs), folder=("--out", out))
     NEW_PATHS.track(out)
     t0 = time.perf_counter()
@@ -138,7 +142,8 @@ def bench_door(
 
 def sweep(
     task: str = typer.Argument(..., help="'synthetic', 'door', or an import path 'package.module:make_task'"),
-    grid: str = typer.Option(..., help="points per theta coordinate, e.g. 25,15 (one number: every coordinate)"),
+    grid: str = typer.Option(..., help="points per theta coordinate, e.g. 25,15 (one number: every coordinate); "
+                                       "at most 1000000 points in all (MAX_SWEEP_POINTS)"),
     out: Path = typer.Option(Path("results/sweep"), help="folder for sweep.csv, sweep.json and sweep.png"),
     seed: int = typer.Option(0, help="seed the task factory gets (when it takes one)"),
     jobs: int = typer.Option(1, help="parallel workers (-1: all cores)"),
@@ -150,6 +155,9 @@ def sweep(
     from corl.errors import CorlError
     from corl.experiments.sweep import sweep_command
 
+    check_args(task=("TASK", task), seed=("--seed", seed), jobs=("--jobs", jobs), folder=("--out", out))
+    NEW_PATHS.track(out)
+    make_folder("--out", out)
     try:
         with progress_tracker(f"sweep {task}", quiet=quiet, log=log, json_out=json_out) as tracker:
             payload = sweep_command(task, grid, out, seed=seed, jobs=jobs, backend=backend, address=address,

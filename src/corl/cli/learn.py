@@ -9,7 +9,7 @@ from typing import Optional
 
 import typer
 
-from corl.arguments import NEW_PATHS, latest_run
+from corl.arguments import NEW_PATHS, latest_run, plain_number
 from corl.cli.common import JSON_OUT, LOG, QUIET, check_args, fail, open_store, print_json, progress_tracker, write_json
 
 __all__ = ["run", "ask", "tell"]
@@ -34,9 +34,7 @@ def run(
 
     from corl.errors import CorlError
     from corl.experiments.run_output import run_summary, run_text, task_extras, write_run_artifacts
-    from corl.methods import DEFAULT_METHOD, METHODS
-    from corl.session import StoredRun
-    from corl.tasks.registry import BUILTIN_TASKS, load_task
+    from corl.methods import METHODS
 
     store_path = store or out / "run.corl"
     check_args(task=("TASK", task), seed=("--seed", seed), folder=("--out", out), store=("--store", store_path))
@@ -44,39 +42,18 @@ def run(
         fail(f"unknown method '{method}'; choose from {', '.join(METHODS)}")
     NEW_PATHS.track(out, store_path)
     t0 = time.perf_counter()
-    try:
-        peeked = latest_run(store_path) if resume else None  # read-only: the seed to build the task with
-        task_seed = (0 if seed is None else seed) if peeked is None else int(peeked.seed or 0)
-        the_task = load_task(task, seed=task_seed)  # before any file is created
+    try:  # every check, the task and the learner (replayed) before the store is opened for writing
+        the_task, session = _run_to_continue(task, store_path, resume=resume, method=method, seed=seed,
+                                             rollout_every_step=rollout_every_step, quiet=quiet)
         db = open_store(store_path)
     except CorlError as exc:
         fail(str(exc))
     with db:
         try:
-            info = db.latest_run() if resume else None
-            if resume and info is None and not quiet:
-                typer.echo(f"--resume: {store_path} holds no run yet (killed before its first commit?); "
-                           "starting one", err=True)
-            if info is not None:
-                stored_every = info.config.get("corl_overrides", {}).get("rollout_every_step")
-                for flag, given, stored in (("--method", method, info.method), ("--seed", seed, info.seed),
-                                            ("--[no-]rollout-every-step", rollout_every_step, stored_every)):
-                    if given is not None and given != stored:
-                        fail(f"{flag} {given} differs from the run being resumed ({stored}); drop the flag")
-                method, seed = info.method, int(info.seed or 0)
-                if seed != task_seed:  # another process started a run meanwhile
-                    the_task = load_task(task, seed=seed)
-                session = StoredRun.open(db, the_task, info.id)
-            else:
-                method = method or ("CORL+PIBU" if task in BUILTIN_TASKS else DEFAULT_METHOD)
-                seed = 0 if seed is None else seed
-                if seed != task_seed:
-                    the_task = load_task(task, seed=seed)
-                overrides = None if rollout_every_step is None else {"rollout_every_step": rollout_every_step}
-                session = StoredRun.start(db, the_task, task_spec=task, method=method, seed=seed,
-                                          corl_overrides=overrides)
+            info = db.run(session.attach(db).run_id)
         except CorlError as exc:
             fail(str(exc))
+        method, seed = info.method, int(info.seed or 0)
 
         import numpy as np
 
@@ -117,57 +94,82 @@ def run(
 def ask(
     store: Path = typer.Option(..., help="run store"),
     task: str = typer.Option(..., help="the task: 'synthetic' or 'package.module:make_task'"),
-    method: str = typer.Option("CORL+PIBU", help="method, used when the store has no run yet"),
-    seed: int = typer.Option(0, help="seed, used when the store has no run yet"),
+    method: Optional[str] = typer.Option(None, help="method of a new run (default CORL+PIBU); with a run in the "
+                                                    "store, only that run's method is accepted"),
+    seed: Optional[int] = typer.Option(None, help="seed of a new run (default 0); with a run in the store, only "
+                                                  "that run's seed is accepted"),
     rate: float = typer.Option(100.0, help="rate of the written trajectory (Hz)"),
     out: Optional[Path] = typer.Option(None, help="folder for trial_<i>.csv/.npz (default: beside the store)"),
     raw: bool = typer.Option(False, "--raw", help="for a task without reference(): write the raw parameters w "
                                                  "(trial_<i>_raw_parameters.csv), NOT a joint trajectory"),
 ) -> None:
     """Write the next trial's trajectory (CSV and NPZ) and print its theta (real-robot loop)."""
-    import numpy as np
-
     from corl.errors import CorlError
     from corl.methods import METHODS
-    from corl.session import StoredRun, trajectory_of
-    from corl.tasks.registry import load_task
+    from corl.session import trajectory_of
 
     check_args(task=("--task", task), seed=("--seed", seed), rate=("--rate", rate), store=("--store", store),
                folder=("--out", out))
-    if method not in METHODS:
+    if method is not None and method not in METHODS:
         fail(f"unknown method '{method}'; choose from {', '.join(METHODS)}")
     NEW_PATHS.track(store, *([out] if out is not None else []))
-    try:
-        peeked = latest_run(store)  # read-only: the seed to build the task with
-        task_seed = seed if peeked is None else int(peeked.seed or 0)
-        the_task = load_task(task, seed=task_seed)  # before any file is created
+    try:  # the trial is computed and checked before the store is opened for writing
+        the_task, session = _run_to_ask(task, store, method=method, seed=seed, raw=raw, rate=rate)
+        proposal = session.learner.ask()
+        trajectory = None if raw else trajectory_of(the_task, proposal.w, rate)
         with open_store(store) as db:
-            info = db.latest_run()
-            if info is not None and int(info.seed or 0) != task_seed:  # another process started a run meanwhile
-                the_task = load_task(task, seed=int(info.seed or 0))
-            if getattr(the_task, "reference", None) is None and not raw:  # corl.problem.HasReference
-                trajectory_of(the_task, np.zeros(1), rate)  # raises the message, before a trial is handed out
-            if info is None:
-                session = StoredRun.start(db, the_task, task_spec=task, method=method, seed=seed)
-            else:
-                session = StoredRun.open(db, the_task, info.id)
-            if session.done:
-                fail(f"run {session.run_id} has finished; 'corl status --store {store}' shows its result", code=1)
-            proposal = session.ask()
-            if raw:
-                from corl.experiments.sweep import write_raw_parameters
-
-                return typer.echo(json.dumps(write_raw_parameters(proposal, out or store.parent)))
-            t, q = trajectory_of(the_task, proposal.w, rate)
+            if session.run_id is None and db.latest_run() is not None:
+                fail(f"another process started a run in {store} meanwhile; nothing was written: run the command "
+                     "again")
+            session.attach(db).hand_out(proposal)
     except CorlError as exc:
         fail(str(exc))
-    folder = out or store.parent
-    folder.mkdir(parents=True, exist_ok=True)
-    stem = folder / f"trial_{proposal.index:04d}"
-    np.savez(stem.with_suffix(".npz"), t=t, q=q, w=proposal.w, theta=proposal.theta)
-    names = getattr(the_task, "joint_names", None) or [f"q{j}" for j in range(q.shape[1])]
-    header = "t," + ",".join(names)
-    np.savetxt(stem.with_suffix(".csv"), np.column_stack([t, q]), delimiter=",", header=header, comments="")
+    _write_trial(out or store.parent, the_task, proposal, trajectory)
+
+
+def _run_to_ask(task: str, store: Path, *, method, seed, raw: bool, rate: float):
+    """``(task, StoredRun)`` of ``corl ask``: the store's latest run replayed read-only, or a new one."""
+    import numpy as np
+
+    from corl.session import StoredRun, trajectory_of
+    from corl.store import RunStatus
+    from corl.tasks.registry import load_task
+
+    info = latest_run(store)  # read-only
+    if info is not None:
+        _refuse_other_flags(info, ("--method", method, info.method), ("--seed", seed, info.seed))
+        if info.status is RunStatus.FINISHED:
+            _refuse_finished(info, store)
+    the_task = load_task(task, seed=int(info.seed or 0) if info is not None else seed or 0)
+    if getattr(the_task, "reference", None) is None and not raw:  # corl.problem.HasReference
+        trajectory_of(the_task, np.zeros(1), rate)  # raises the message, before a trial is handed out
+    if info is None:
+        return the_task, StoredRun.new(the_task, task_spec=task, method=method or "CORL+PIBU", seed=seed or 0)
+    session = _reopened(the_task, store, info)
+    if session.done:
+        _refuse_finished(info, store)
+    return the_task, session
+
+
+def _write_trial(folder: Path, the_task, proposal, trajectory) -> None:
+    """Write the handed-out trial (trajectory CSV/NPZ, or the raw w) and print where it went."""
+    import numpy as np
+
+    from corl.experiments.sweep import write_raw_parameters
+
+    try:
+        if trajectory is None:
+            return typer.echo(json.dumps(write_raw_parameters(proposal, folder)))
+        t, q = trajectory
+        folder.mkdir(parents=True, exist_ok=True)
+        stem = folder / f"trial_{proposal.index:04d}"
+        np.savez(stem.with_suffix(".npz"), t=t, q=q, w=proposal.w, theta=proposal.theta)
+        names = getattr(the_task, "joint_names", None) or [f"q{j}" for j in range(q.shape[1])]
+        np.savetxt(stem.with_suffix(".csv"), np.column_stack([t, q]), delimiter=",", header="t," + ",".join(names),
+                   comments="")
+    except OSError as exc:
+        fail(f"cannot write trial {proposal.index} to {folder}: {exc.strerror}; the trial is stored as pending: "
+             "free space (or give another --out) and run 'corl ask' again to write it")
     typer.echo(json.dumps({"trial": proposal.index, "step": proposal.step, "round": proposal.round,
                            "theta": proposal.theta.tolist(), "csv": str(stem.with_suffix(".csv")),
                            "npz": str(stem.with_suffix(".npz"))}))
@@ -177,15 +179,12 @@ def tell(
     store: Path = typer.Option(..., help="run store"),
     task: str = typer.Option(..., help="the task: 'synthetic' or 'package.module:make_task'"),
     success: str = typer.Option(..., help="did the trial succeed: yes or no"),
-    return_: Optional[str] = typer.Option(None, "--return", help="the measured return (needed on success)"),
+    return_: Optional[str] = typer.Option(None, "--return", help="the measured return (needed on success), a plain "
+                                                                 "number such as 0.25 or -1.5e3"),
 ) -> None:
     """Record the outcome of the pending trial."""
-    import math
-
     from corl.errors import CorlError
     from corl.problem import Outcome
-    from corl.session import StoredRun
-    from corl.tasks.registry import load_task
 
     flag = success.strip().lower()
     if flag not in ("yes", "no"):
@@ -194,25 +193,72 @@ def tell(
     if flag == "no" and return_ is not None:
         fail(f"a failed trial is told without a return: drop --return {return_} (or say --success yes if the "
              "trial succeeded); nothing was stored")
-    value = None
-    if return_ is not None:
-        try:
-            value = float(return_)
-        except ValueError:
-            fail(f"--return must be a number, got {return_!r}")
-        if not math.isfinite(value):
-            fail(f"--return must be finite, got {return_!r}")
     try:
-        outcome = Outcome(flag == "yes", value)
+        outcome = Outcome(flag == "yes", None if return_ is None else plain_number("--return", return_))
+        session = _run_to_tell(task, store, outcome)  # every check before the store is opened for writing
         with open_store(store, create=False) as db:
-            info = db.latest_run()
-            if info is None:
-                fail(f"{store} holds no run; start one with 'corl ask'")
-            if db.pending(info.id) is None:
-                fail("there is no pending trial to tell (each trial is told once): run 'corl ask' first")
-            session = StoredRun.open(db, load_task(task, seed=int(info.seed or 0)), info.id)
-            session.tell(outcome)
-            typer.echo(json.dumps({"trial": len(session.history) - 1, "success": outcome.success,
-                                   "return": outcome.return_, "done": session.done}))
+            session.attach(db).tell(outcome)
     except CorlError as exc:
         fail(str(exc))
+    typer.echo(json.dumps({"trial": len(session.history) - 1, "success": outcome.success,
+                           "return": outcome.return_, "done": session.done}))
+
+
+def _run_to_tell(task: str, store: Path, outcome):
+    """The StoredRun whose pending trial ``outcome`` answers, replayed read-only and checked (StoredRun.check)."""
+    from corl.session import StoredRun
+    from corl.tasks.registry import load_task
+
+    with open_store(store, readonly=True) as db:
+        info = db.latest_run()
+        if info is None:
+            fail(f"{store} holds no run; start one with 'corl ask'")
+        if db.pending(info.id) is None:
+            fail("there is no pending trial to tell (each trial is told once): run 'corl ask' first")
+        session = StoredRun.open(db, load_task(task, seed=int(info.seed or 0)), info.id)
+        session.check(outcome)
+    return session
+
+
+def _run_to_continue(task: str, store_path: Path, *, resume: bool, method, seed, rollout_every_step, quiet: bool):
+    """``(task, StoredRun)`` of ``corl run``: the store's latest run replayed from a read-only open
+    (``--resume``), or a new run in no store yet; nothing is written (see StoredRun.attach)."""
+    from corl.methods import DEFAULT_METHOD
+    from corl.session import StoredRun
+    from corl.tasks.registry import BUILTIN_TASKS, load_task
+
+    info = latest_run(store_path) if resume else None  # read-only
+    if resume and info is None and not quiet:
+        typer.echo(f"--resume: {store_path} holds no run yet (killed before its first commit?); starting one", err=True)
+    if info is None:
+        method = method or ("CORL+PIBU" if task in BUILTIN_TASKS else DEFAULT_METHOD)
+        seed = 0 if seed is None else seed
+        the_task = load_task(task, seed=seed)
+        overrides = None if rollout_every_step is None else {"rollout_every_step": rollout_every_step}
+        return the_task, StoredRun.new(the_task, task_spec=task, method=method, seed=seed, corl_overrides=overrides)
+    stored_every = info.config.get("corl_overrides", {}).get("rollout_every_step")
+    _refuse_other_flags(info, ("--method", method, info.method), ("--seed", seed, info.seed),
+                        ("--[no-]rollout-every-step", rollout_every_step, stored_every))
+    the_task = load_task(task, seed=int(info.seed or 0))
+    return the_task, _reopened(the_task, store_path, info)
+
+
+def _reopened(the_task, store_path: Path, info):
+    """The StoredRun of run ``info``: its trials replayed into a fresh learner, the store opened read-only."""
+    from corl.session import StoredRun
+
+    with open_store(store_path, readonly=True) as db:
+        return StoredRun.open(db, the_task, info.id)
+
+
+def _refuse_other_flags(info, *flags: tuple[str, object, object]) -> None:
+    """Exit 2 when a ``(flag, given, stored)`` was given with another value than the stored run's."""
+    for flag, given, stored in flags:
+        if given is not None and given != stored:
+            fail(f"{flag} {given} differs from the run being resumed (run {info.id} has {stored}); drop the "
+                 "flag, or give another --store to start a new run")
+
+
+def _refuse_finished(info, store: Path) -> None:
+    fail(f"run {info.id} in {store} has finished, so there is no next trial to ask; 'corl report --store {store} "
+         "--out DIR' (or 'corl status') shows its result, and another --store starts a new run")

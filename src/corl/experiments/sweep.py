@@ -17,17 +17,23 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from corl.errors import InputError
+from corl.errors import InputError, RolloutError
 from corl.experiments.figures import plot_sweep
+from corl.problem import Outcome
+from corl.store.files import write_atomically, write_text_atomically
 
-__all__ = ["Sweep", "TaskSpec", "parse_grid", "evaluate_points", "sweep_task", "write_sweep", "sweep_command",
-           "write_raw_parameters"]
+__all__ = ["Sweep", "TaskSpec", "parse_grid", "check_grid", "evaluate_points", "sweep_task", "write_sweep",
+           "sweep_command", "write_raw_parameters", "MAX_SWEEP_POINTS"]
+
+MAX_SWEEP_POINTS = 1_000_000  # each point is a realisation and a rollout: 10^6 synthetic ones take ~20 min on
+# one core (~1 ms each), a simulator's far longer; the arrays and the CSV (~25 MB) stay small
 
 Progress = Callable[[int, int, int], None]  # (points done, total, successes so far)
 
@@ -90,8 +96,18 @@ def parse_grid(text: str, dim: int) -> tuple[int, ...]:
         sizes = sizes * dim
     if len(sizes) != dim:
         raise InputError(f"--grid {text!r} gives {len(sizes)} sizes, but theta has {dim} coordinates")
-    if min(sizes) < 2:
-        raise InputError(f"--grid needs at least 2 points per coordinate, got {text!r}")
+    return check_grid(sizes, dim, what=f"--grid {text!r}")
+
+
+def check_grid(sizes: tuple[int, ...], dim: int, *, what: str) -> tuple[int, ...]:
+    """``sizes`` if they give each of theta's ``dim`` coordinates 2 or more points and at most
+    :data:`MAX_SWEEP_POINTS` points in all, else :class:`InputError` (before any array is made)."""
+    if len(sizes) != dim or min(sizes, default=0) < 2:
+        raise InputError(f"{what} needs at least 2 points in each of theta's {dim} coordinates")
+    total = math.prod(sizes)
+    if total > MAX_SWEEP_POINTS:
+        raise InputError(f"{what} makes {total} grid points; a sweep takes at most {MAX_SWEEP_POINTS} "
+                         "(every point is a rollout): give fewer points per coordinate")
     return sizes
 
 
@@ -120,11 +136,24 @@ def evaluate_points(task, anchor, theta_anchor, thetas) -> tuple[np.ndarray, np.
         result = realise(task, anchor, theta_anchor, theta, solver)
         realised[k] = result.feasible
         if result.feasible:
-            outcome = task.rollout(result.w)
+            outcome = _rollout(task, result.w, theta)
             success[k] = outcome.success
             if outcome.success:
                 returns[k] = float(outcome.return_)
     return success, realised, returns
+
+
+def _rollout(task, w, theta) -> Outcome:
+    """``task.rollout(w)``; a rollout that raises (or exits) or returns no Outcome is a :class:`RolloutError`."""
+    where = f"the rollout of task '{task.name}' at theta {np.array2string(np.asarray(theta), precision=6)}"
+    try:
+        outcome = task.rollout(w)
+    except (Exception, SystemExit) as exc:  # user code: a sys.exit() there must not end a sweep silently
+        raise RolloutError(f"{where} raised {type(exc).__name__}: {exc}; fix the task's rollout (call it in "
+                           "Python to see the traceback); nothing was written") from None
+    if not isinstance(outcome, Outcome):
+        raise RolloutError(f"{where} returned a {type(outcome).__name__}, not a corl.Outcome; fix the task's rollout")
+    return outcome
 
 
 def _chunk(make_task, anchor, theta_anchor, thetas):
@@ -153,8 +182,7 @@ def sweep_task(make_task: Callable[[], object], grid, *, anchor=None, theta_anch
     task = make_task()
     bounds = task.theta_bounds
     grid = tuple(int(g) for g in grid)
-    if len(grid) != bounds.dim or min(grid) < 2:
-        raise InputError(f"the grid needs at least 2 points in each of theta's {bounds.dim} coordinates, got {grid}")
+    check_grid(grid, bounds.dim, what=f"the grid {grid}")
     if anchor is None or theta_anchor is None:
         demo = task.demonstration()
         anchor = demo.w if anchor is None else anchor
@@ -186,43 +214,57 @@ def sweep_task(make_task: Callable[[], object], grid, *, anchor=None, theta_anch
     return Sweep(axes, success.reshape(grid), realised.reshape(grid), returns.reshape(grid), theta_anchor)
 
 
+_HINT = "free disk space or choose another --out"  # what to do when a file of the sweep cannot be written
+
+
 def write_sweep(sweep: Sweep, out: str | Path, *, labels=None, title: str = "") -> dict[str, str]:
     """``sweep.csv`` (one row per grid point), ``sweep.json`` and, for m <= 2, ``sweep.png`` (the map).
 
+    Each file is written whole or not at all (:func:`corl.store.files.write_atomically`); a folder
+    or file that cannot be written (a full disk, a read-only place) is an :class:`InputError`.
     Returns {kind: path}; the map of a theta with more than 2 coordinates is skipped (``png_skipped``).
     """
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create the sweep folder {out}: {exc.strerror}; choose another --out") from None
     m = len(sweep.axes)
     labels = tuple(labels) if labels is not None and len(labels) == m else tuple(f"theta{k + 1}" for k in range(m))
-    points = sweep.points
-    with open(out / "sweep.csv", "w", newline="") as f:
-        writer = csv.writer(f)
-        writer.writerow([f"theta{k + 1}" for k in range(m)] + ["realised", "success", "return"])
-        for p, r, s, R in zip(points, sweep.realised.ravel(), sweep.success.ravel(), sweep.returns.ravel()):
-            writer.writerow([f"{v:.10g}" for v in p] + [int(r), int(s), "" if np.isnan(R) else f"{R:.10g}"])
-    best = None
-    if sweep.success.any():
-        k = int(np.nanargmax(np.where(sweep.success.ravel(), sweep.returns.ravel(), np.nan)))
-        best = {"theta": points[k].tolist(), "return": float(sweep.returns.ravel()[k])}
-    payload = {"labels": list(labels), "grid": list(sweep.success.shape), "axes": [a.tolist() for a in sweep.axes],
-               "anchor_theta": sweep.anchor_theta.tolist(), "points": int(points.shape[0]),
-               "successes": int(sweep.success.sum()), "unrealised": int((~sweep.realised).sum()), "best": best,
-               "csv": str(out / "sweep.csv")}
-    (out / "sweep.json").write_text(json.dumps(payload, indent=2) + "\n")
-    files = {"csv": str(out / "sweep.csv"), "json": str(out / "sweep.json")}
+    files = {"csv": str(write_atomically(out / "sweep.csv", lambda tmp: _write_csv(tmp, sweep), hint=_HINT))}
+    payload = {**_summary(sweep, labels), "csv": files["csv"]}
+    files["json"] = str(write_text_atomically(out / "sweep.json", json.dumps(payload, indent=2) + "\n", hint=_HINT))
     if m > 2:
         files["png_skipped"] = f"no map for a theta with {m} coordinates (the CSV has every point)"
         return files
-    files["png"] = str(plot_sweep(sweep, out / "sweep.png", labels=labels, title=title))
+    draw = lambda tmp: plot_sweep(sweep, tmp, labels=labels, title=title)  # noqa: E731
+    files["png"] = str(write_atomically(out / "sweep.png", draw, hint=_HINT))
     return files
+
+
+def _write_csv(path: Path, sweep: Sweep) -> None:
+    m = len(sweep.axes)
+    with open(path, "w", newline="") as f:
+        writer = csv.writer(f)
+        writer.writerow([f"theta{k + 1}" for k in range(m)] + ["realised", "success", "return"])
+        for p, r, s, R in zip(sweep.points, sweep.realised.ravel(), sweep.success.ravel(), sweep.returns.ravel()):
+            writer.writerow([f"{v:.10g}" for v in p] + [int(r), int(s), "" if np.isnan(R) else f"{R:.10g}"])
+
+
+def _summary(sweep: Sweep, labels: tuple[str, ...]) -> dict:
+    """What ``sweep.json`` holds besides the CSV's path: the grid, counts and the best successful point."""
+    points, best = sweep.points, None
+    if sweep.success.any():
+        k = int(np.nanargmax(np.where(sweep.success.ravel(), sweep.returns.ravel(), np.nan)))
+        best = {"theta": points[k].tolist(), "return": float(sweep.returns.ravel()[k])}
+    return {"labels": list(labels), "grid": list(sweep.success.shape), "axes": [a.tolist() for a in sweep.axes],
+            "anchor_theta": sweep.anchor_theta.tolist(), "points": int(points.shape[0]),
+            "successes": int(sweep.success.sum()), "unrealised": int((~sweep.realised).sum()), "best": best}
 
 
 def sweep_command(task: str, grid: str, out, *, seed: int = 0, jobs: int = 1, backend: str = "loky",
                   address: str | None = None, tracker=None) -> dict:
     """``corl sweep``: build the task, sweep the grid from the demonstration, write the files; the JSON payload."""
-    import math
-
     spec = TaskSpec(task, seed)
     the_task = spec()
     sizes = parse_grid(grid, the_task.theta_bounds.dim)

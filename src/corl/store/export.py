@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import csv
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from corl.errors import InputError
+from corl.store.files import write_atomically
 from corl.store.records import StoreError, TrialRecord
 
 __all__ = ["check_export_path", "write_export"]
@@ -87,18 +87,9 @@ def _write_csv(file, columns: dict[str, list]) -> None:
 
 def _write_atomically(path: Path, write, *, text: bool = False) -> None:
     """Write through a temporary file in the same folder, then rename: no half-written exports."""
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    except OSError as exc:
-        raise InputError(f"cannot write {path}: {exc.strerror}; choose another --out") from None
-    try:
-        with open(fd, "w" if text else "wb", newline="" if text else None) as f:
+
+    def to_file(tmp: Path) -> None:
+        with open(tmp, "w" if text else "wb", newline="" if text else None) as f:
             write(f)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except OSError as exc:
-        Path(tmp).unlink(missing_ok=True)
-        raise InputError(f"cannot write {path}: {exc.strerror}; choose another --out") from None
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+
+    write_atomically(path, to_file)

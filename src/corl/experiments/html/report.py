@@ -33,6 +33,7 @@ import numpy as np
 from corl.errors import CorlError, InputError
 from corl.mujoco.video import RENDERING_HINT
 from corl.store import RunInfo, RunStore, StoreError, TrialRecord
+from corl.store.files import write_text_atomically
 
 __all__ = ["RunReport", "collect_report", "write_reports", "data_uri", "VIDEO_NAMES"]
 
@@ -227,11 +228,23 @@ def collect_report(db: RunStore, info: RunInfo, *, video: bool = True, n_runs: i
                        best_index=_best_index(records), learned_index=_learned_index(learner, records),
                        theta_labels=labels, notes=notes,
                        replayed=learner is not None)
-    with tempfile.TemporaryDirectory(prefix="corl-report-") as tmp:
-        _figures(report, task, learner, Path(tmp))
-        if video:
-            _video(report, task, learner, Path(tmp), n_runs)
+    _draw(report, task, learner, video=video, n_runs=n_runs)
     return report
+
+
+def _draw(report: RunReport, task, learner, *, video: bool, n_runs: int) -> None:
+    """Figures and video, drawn in a temporary folder (removed after) and embedded in ``report``.
+
+    A disk that is full there is an :class:`InputError`, not a half-drawn page."""
+    try:
+        with tempfile.TemporaryDirectory(prefix="corl-report-") as tmp:
+            _figures(report, task, learner, Path(tmp))
+            if video:
+                _video(report, task, learner, Path(tmp), n_runs)
+    except OSError as exc:
+        raise InputError(f"cannot draw the figures of run {report.info.id} in the temporary folder "
+                         f"{tempfile.gettempdir()}: {exc.strerror or exc}; free disk space there (or point TMPDIR to "
+                         "a folder with space)") from None
 
 
 def write_reports(store: str | Path, out: str | Path, *, run_id: int | None = None, video: bool = True,
@@ -273,12 +286,5 @@ def write_reports(store: str | Path, out: str | Path, *, run_id: int | None = No
 
 
 def _write_text(path: Path, text: str) -> Path:
-    """Write ``text`` to ``path`` through a temporary file, so a page is never half written."""
-    tmp = path.with_name(path.name + ".tmp")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        tmp.replace(path)
-    except OSError as exc:
-        raise InputError(f"cannot write {path}: {exc.strerror}; check that --out is writable") from None
-    return path
-
+    """Write ``text`` to ``path`` through a temporary file, removed on failure: never half a page."""
+    return write_text_atomically(path, text, hint="check that --out is writable and has free space")
