@@ -10,6 +10,7 @@ import sys
 
 import pytest
 from benchmark_module import load_benchmark
+from cli_refusal import listing, refuse
 from typer.testing import CliRunner
 
 from corl.cli import app
@@ -34,10 +35,6 @@ def dump(path):
         return list(db.iterdump())
 
 
-def listing(folder):
-    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if "__pycache__" not in p.parts)
-
-
 def asked_store(folder):
     """A store whose demonstration (trial 0) is pending, as `corl ask` leaves it."""
     res = runner.invoke(app, ["ask", "--store", str(folder / "s.corl"), "--task", "synthetic", "--raw"])
@@ -47,11 +44,7 @@ def asked_store(folder):
 
 def refused(args, folder, message):
     before = listing(folder)
-    res = runner.invoke(app, args)
-    assert res.exit_code == 2, (args, res.output)
-    assert isinstance(res.exception, SystemExit), (args, res.exception)  # no traceback
-    lines = res.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], (args, res.stderr)
+    res, _ = refuse(args, message)
     assert listing(folder) == before, args  # no store, .lock, output folder or file left behind
     return res
 

@@ -1,12 +1,9 @@
 """benchmarks/hostile_api.py: every bad call to the public API is refused in one line, every huge
 but finite return works; no raw exception (issue 21)."""
 
-import sys
-from pathlib import Path
+from benchmark_module import load_benchmark
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-
-import hostile_api  # noqa: E402
+hostile_api = load_benchmark("hostile_api")
 
 
 def test_every_api_case_is_refused_in_one_line_or_works(capsys):

@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from cli_refusal import refuse
 from typer.testing import CliRunner
 
 from corl.cli import app
@@ -92,17 +93,13 @@ def state(folder: Path) -> dict[str, tuple[bytes, int]]:
 
 def refused(args: list[str], folder: Path, message: str) -> str:
     before = state(folder)
-    res = runner.invoke(app, args)
-    assert res.exit_code == 2, (args, res.output)
-    assert isinstance(res.exception, SystemExit), (args, res.exception)  # no traceback
-    lines = res.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], (args, res.stderr)
+    _, line = refuse(args, message)
     after = state(folder)
     assert after.keys() == before.keys(), (args, sorted(after.keys() ^ before.keys()))  # nothing new, nothing gone
     for name, (data, mtime) in before.items():
         assert after[name][0] == data, (args, name, "bytes changed")  # e.g. the header's change counter
         assert after[name][1] == mtime, (args, name, "mtime changed")
-    return lines[0]
+    return line
 
 
 TELL = ["tell", "--task", "synthetic", "--store"]

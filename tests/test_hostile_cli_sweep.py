@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from cli_refusal import listing, refuse
 from typer.testing import CliRunner
 
 import corl.experiments.sweep as sweep_module
@@ -54,19 +55,11 @@ def workdir(tmp_path, monkeypatch):
     sys.modules.pop("sweeptask", None)
 
 
-def listing(folder: Path) -> list[str]:
-    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if "__pycache__" not in p.parts)
-
-
 def refused(args: list[str], folder: Path, message: str):
     before = listing(folder)
-    res = runner.invoke(app, args)
-    assert res.exit_code == 2, (args, res.output)
-    assert isinstance(res.exception, SystemExit), (args, res.exception)  # no traceback
-    lines = res.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: ") and message in lines[0], (args, res.stderr)
+    _, line = refuse(args, message)
     assert listing(folder) == before, args  # no sweep.csv, no temporary file, no empty folder
-    return lines[0]
+    return line
 
 
 @pytest.mark.parametrize("args, message", [
