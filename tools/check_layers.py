@@ -49,11 +49,13 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("methods", ("corl.methods",)),  # a learner by name
     ("tasks", ("corl.tasks",)),  # the synthetic benchmark, the door, tasks by name
     ("store", ("corl.store",)),  # the SQLite run store
+    ("contexts", ("corl.contexts",)),  # one skill, many scenes: GPs over (theta, c), Skill.policy(c)
     ("session", ("corl.session",)),  # a learner bound to the store, exact resume
     # experiments/, by what it produces: the bricks, then what is built of them
     ("experiments.base", ("corl.experiments.backends", "corl.experiments.figures", "corl.experiments.tables")),
     ("experiments.sweep", ("corl.experiments.sweep", "corl.experiments.run_output")),  # ground truth; a run's folder
-    ("experiments.studies", ("corl.experiments.synthetic", "corl.experiments.door")),  # Fig. 1, Fig. 3
+    ("experiments.studies", ("corl.experiments.synthetic", "corl.experiments.door",
+                                                       "corl.experiments.contexts")),  # Fig. 1, Fig. 3
     ("experiments.html", ("corl.experiments.html",)),  # `corl report`
     ("experiments", ("corl.experiments",)),  # the package, and the old path of corl.methods
     ("cli.support", ("corl.progress", "corl.arguments")),  # progress display, argument checks

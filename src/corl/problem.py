@@ -32,7 +32,7 @@ from corl.numerics import as_vector
 
 __all__ = ["Bounds", "Outcome", "Proposal", "Demonstration", "Task", "check_theta", "HasMethodSettings",
            "HasTrajectoryProblem", "HasProjectionMetric", "HasSpline", "Retimable", "HasPinnedTimes", "HasReference",
-           "HasJointNames", "HasThetaLabels", "RendersComparison", "REQUIRED_MEMBERS", "OPTIONAL_MEMBERS",
+           "HasJointNames", "HasThetaLabels", "RendersComparison", "HasContexts", "context_of", "REQUIRED_MEMBERS", "OPTIONAL_MEMBERS",
            "DEPRECATED_MEMBERS", "constraint_of", "check_task", "check_reference"]
 
 
@@ -77,18 +77,19 @@ class Bounds:
         return self.lower + np.asarray(u, dtype=float) * self.width
 
 
-def check_theta(theta, bounds: Bounds, *, task: str = "task") -> np.ndarray:
-    """Validate a theta against a task's bounds and return it as a float vector (m,)."""
+def check_theta(theta, bounds: Bounds, *, task: str = "task", what: str = "theta") -> np.ndarray:
+    """Validate a theta (or another point, named ``what``: "context") against a task's bounds and
+    return it as a float vector (m,)."""
     arr = np.asarray(theta, dtype=float)
     if arr.ndim == 0:
         arr = arr.reshape(1)
     if arr.shape != (bounds.dim,):
-        raise InputError(f"theta has shape {arr.shape}, expected ({bounds.dim},) for task '{task}'")
+        raise InputError(f"{what} has shape {arr.shape}, expected ({bounds.dim},) for task '{task}'")
     if not np.all(np.isfinite(arr)):
-        raise InputError(f"theta contains NaN or infinite values: {arr}")
+        raise InputError(f"{what} contains NaN or infinite values: {arr}")
     if not bounds.contains(arr):
         raise InputError(
-            f"theta {np.array2string(arr, precision=4)} is outside the bounds of task '{task}': "
+            f"{what} {np.array2string(arr, precision=4)} is outside the bounds of task '{task}': "
             f"lower {np.array2string(bounds.lower, precision=4)}, upper {np.array2string(bounds.upper, precision=4)}"
         )
     return arr
@@ -294,6 +295,25 @@ class RendersComparison(Protocol):
     def render_comparison(self, w_demo: np.ndarray, w_learned: np.ndarray, path) -> Any: ...
 
 
+@runtime_checkable
+class HasContexts(Protocol):
+    """Contexts (one skill, many scenes): what the robot measures before a trial and cannot choose.
+
+    ``context_bounds``: the :class:`Bounds` of the context ``c`` (k,), e.g. a door's pose and
+    handle height; ``context``: this task's own context (k,), inside the box; ``with_context(c)``:
+    the same task in context ``c``, a task whose ``context`` is ``c``. ``theta`` keeps its meaning
+    and ``w`` its layout (n,) across contexts; ``h``, ``J`` and the rollout are those of scene ``c``.
+    The demonstration is recorded once, in one context; ``with_context(c).demonstration()`` may be
+    a demonstration in ``c`` (what learning from scratch there starts from). Optional:
+    ``context_labels``, k axis labels. :mod:`corl.contexts` learns across contexts.
+    """
+
+    context_bounds: Bounds
+    context: Any
+
+    def with_context(self, c) -> "Task": ...
+
+
 REQUIRED_MEMBERS = {"name": False, "theta_bounds": False, "w_bounds": False, "demonstration": True,
                     "cost_residuals": True, "constraint": True, "theta_of": True, "rollout": True}  # name: callable?
 OPTIONAL_MEMBERS = {"method_settings": (HasMethodSettings, True),
@@ -302,7 +322,9 @@ OPTIONAL_MEMBERS = {"method_settings": (HasMethodSettings, True),
                     "spline": (HasSpline, False), "retimed": (Retimable, True),
                     "pinned_times": (HasPinnedTimes, False), "reference": (HasReference, True),
                     "joint_names": (HasJointNames, False), "theta_labels": (HasThetaLabels, False),
-                    "render_comparison": (RendersComparison, True)}
+                    "render_comparison": (RendersComparison, True),
+                    "with_context": (HasContexts, True), "context_bounds": (HasContexts, False),
+                    "context": (HasContexts, False), "context_labels": (HasContexts, False)}
 
 
 DEPRECATED_MEMBERS = {"projection": "constraint"}  # old name -> new name; read only when the new one is absent
@@ -350,6 +372,7 @@ def check_task(task, source: str = "the task") -> Task:
         if value is not None and is_method and not callable(value):
             raise InputError(f"{where}: the optional member '{member}' must be a method or absent "
                              f"(see corl.problem.{OPTIONAL_MEMBERS[member][0].__name__})")
+    _check_contexts(task, where)
     for member, size in (("theta_labels", task.theta_bounds.dim), ("joint_names", None)):
         value = getattr(task, member, None)
         if value is None:
@@ -359,6 +382,38 @@ def check_task(task, source: str = "the task") -> Task:
         if size is not None and len(value) != size:
             raise InputError(f"{where}: '{member}' has {len(value)} entries, theta has {size}; give one per coordinate")
     return task
+
+
+def _check_contexts(task, where: str) -> None:
+    """The context members come together: ``context_bounds`` a Bounds, ``context`` inside it,
+    ``with_context`` a method, ``context_labels`` one string per context coordinate."""
+    present = [m for m in ("with_context", "context_bounds", "context") if getattr(task, m, None) is not None]
+    if not present:
+        return
+    if len(present) < 3:
+        missing = sorted({"with_context", "context_bounds", "context"} - set(present))
+        raise InputError(f"{where} has {', '.join(present)} but lacks {', '.join(missing)}; a task with contexts "
+                         "gives all three (see corl.problem.HasContexts)")
+    if not isinstance(task.context_bounds, Bounds):
+        raise InputError(f"{where}: context_bounds must be a corl.problem.Bounds, got {type(task.context_bounds).__name__}")
+    context_of(task)
+    labels = getattr(task, "context_labels", None)
+    if labels is not None and (isinstance(labels, str) or len(labels) != task.context_bounds.dim
+                               or not all(isinstance(v, str) for v in labels)):
+        raise InputError(f"{where}: 'context_labels' must be {task.context_bounds.dim} strings, got {labels!r}")
+
+
+def context_of(task) -> np.ndarray | None:
+    """The task's own context (k,) checked against its ``context_bounds``, or None for a task without
+    contexts (:class:`HasContexts`)."""
+    bounds = getattr(task, "context_bounds", None)
+    if bounds is None or getattr(task, "with_context", None) is None:
+        return None
+    try:
+        return check_theta(getattr(task, "context", None), bounds, task=getattr(task, "name", "task"), what="context")
+    except (TypeError, ValueError):
+        raise InputError(f"task '{getattr(task, 'name', '?')}': context must be {bounds.dim} numbers inside "
+                         f"context_bounds, got {getattr(task, 'context', None)!r:.60}") from None
 
 
 def check_reference(task, t, q, rate: float) -> tuple[np.ndarray, np.ndarray]:

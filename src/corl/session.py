@@ -27,19 +27,56 @@ from corl.loop import drive
 from corl.problem import Outcome, Proposal, Task
 from corl.store import RunStatus, RunStore, StoreError, replay
 
-__all__ = ["StoredRun", "trajectory_of", "check_rate", "MAX_RATE_HZ"]
+__all__ = ["StoredRun", "trajectory_of", "check_rate", "check_context", "MAX_RATE_HZ"]
 
 
 def _build(task: Task, method: str, seed: int, corl_overrides: dict | None = None):
     """The learner; ``corl_overrides`` replace fields of the task's CORLConfig (``--rollout-every-step``)."""
-    from dataclasses import replace
-
-    from corl.methods import make_method, settings_for
+    from corl.methods import make_method
 
     if not corl_overrides:
         return make_method(method, task, seed=seed)
+    return make_method(method, task, seed=seed, settings=_settings(task, corl_overrides))
+
+
+def _settings(task: Task, corl_overrides: dict | None):
+    from dataclasses import replace
+
+    from corl.methods import settings_for
+
     settings = settings_for(task)  # the same defaults as without overrides (a user's task: fitted GPs)
-    return make_method(method, task, seed=seed, settings=replace(settings, corl=replace(settings.corl, **corl_overrides)))
+    return replace(settings, corl=replace(settings.corl, **corl_overrides)) if corl_overrides else settings
+
+
+def _build_in_context(task: Task, method: str, seed: int, corl_overrides: dict | None, context,
+                      store: RunStore | None, before: int | None):
+    """The learner of a run in ``context``: what the store's earlier runs taught (:mod:`corl.contexts`)."""
+    from corl.contexts import ContextualCORL, Skill, context_task, learned, plain_learner
+
+    task = context_task(task)
+    if method != "CORL":
+        raise InputError(f"a run in a context learns with the CORL method (SEIB on GPs over (theta, c)); "
+                         f"got --method {method}: drop it, or drop --context")
+    c = np.asarray(context, dtype=float)
+    scene = task.with_context(c) if not np.array_equal(c, np.asarray(task.context, dtype=float)) else task
+    settings = _settings(scene, corl_overrides)
+    anchors = learned(store, task, before=before)[1] if store is not None else []
+    if not anchors:  # the first context: Algorithm 1 from the demonstration of that scene
+        return plain_learner(scene, seed=seed, settings=settings)
+    data, anchors = learned(store, task, before=before)
+    return ContextualCORL(task, c, Skill(task, data, anchors), settings=settings, seed=seed)
+
+
+def check_context(task: Task, context) -> np.ndarray:
+    """``context`` as a point of the task's context box, or one InputError (a task without contexts too)."""
+    from corl.contexts import context_task
+    from corl.problem import check_theta
+
+    task = context_task(task)
+    try:
+        return check_theta(context, task.context_bounds, task=task.name, what="context")
+    except (TypeError, ValueError):
+        raise InputError(f"--context needs {task.context_bounds.dim} numbers, got {context!r:.60}") from None
 
 
 class StoredRun:
@@ -61,17 +98,29 @@ class StoredRun:
     # -- creating and reopening ----------------------------------------------------------------
     @classmethod
     def new(cls, task: Task, *, task_spec: str, method: str, seed: int,
-            corl_overrides: dict | None = None) -> "StoredRun":
+            corl_overrides: dict | None = None, context=None, learned_from: RunStore | None = None) -> "StoredRun":
         """A new run of ``method`` on ``task``, in no store yet (:meth:`attach` creates it there).
 
         ``task_spec`` is how the command line named the task; ``corl_overrides`` (e.g.
         ``{"rollout_every_step": False}``) replace fields of the task's CORLConfig, are stored with
         the run and applied again when it is reopened. A method that cannot run the task raises here.
+        ``context`` (k,): learn in that scene from what the runs of ``learned_from`` (the store it
+        will be attached to, read-only) taught (:mod:`corl.contexts`); the run records its context.
         """
-        learner = _build(task, method, seed, corl_overrides)
+        from corl.problem import context_of
+
+        if context is not None:
+            context = check_context(task, context)
+            learner = _build_in_context(task, method, seed, corl_overrides, context, learned_from, None)
+        else:
+            learner = _build(task, method, seed, corl_overrides)
         config = {"task_spec": task_spec, "task_name": task.name}
         if corl_overrides:
             config["corl_overrides"] = dict(corl_overrides)
+        own = context_of(task)
+        if context is not None or own is not None:  # a task with contexts: every run records its scene
+            config["context"] = _plain(context if context is not None else own)
+            config["contextual"] = context is not None
         cfg = getattr(learner, "config", None)
         if cfg is not None:
             config["learner"] = _plain(asdict(cfg))
@@ -97,8 +146,12 @@ class StoredRun:
         if info.task != task.name:
             raise InputError(f"run {info.id} in {store.path} is for task '{info.task}', but the task given is "
                              f"'{task.name}'; name the same task as when the run was started")
-        learner = _build(task, info.method, 0 if info.seed is None else int(info.seed),
-                         info.config.get("corl_overrides"))
+        seed = 0 if info.seed is None else int(info.seed)
+        if info.config.get("contextual"):  # learned in a context: from the runs before it, as when it started
+            learner = _build_in_context(task, info.method, seed, info.config.get("corl_overrides"),
+                                        check_context(task, info.config["context"]), store, info.id)
+        else:
+            learner = _build(task, info.method, seed, info.config.get("corl_overrides"))
         replay(learner, store, info.id)
         run = cls(learner, store, info.id)
         run._seen = _snapshot(info)

@@ -14,7 +14,7 @@ from corl.problem import Task, check_task
 
 __all__ = ["load_task", "check_task_spec", "BUILTIN_TASKS"]
 
-BUILTIN_TASKS = ("synthetic", "door")
+BUILTIN_TASKS = ("synthetic", "synthetic-context", "door")
 
 
 def load_task(spec: str, *, seed: int = 0) -> Task:
@@ -27,10 +27,18 @@ def load_task(spec: str, *, seed: int = 0) -> Task:
     """
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise InputError(f"the seed must be a non-negative integer, got {seed!r}")
-    if spec == "synthetic":
-        from corl.tasks.synthetic import SyntheticTask
+    from corl.tasks.synthetic import SyntheticTask
 
+    if spec == "synthetic":
         return SyntheticTask(SyntheticTask.random_start(np.random.default_rng([seed, 2016])))
+    if spec == "synthetic-context":
+        from corl.tasks.synthetic import ContextualSyntheticTask
+
+        rng = np.random.default_rng([seed, 2016])
+        w0 = SyntheticTask.random_start(rng)
+        while not -1.0 < np.arctan2(w0[1], w0[0]) < 2.0:  # safe in every context of the box
+            w0 = SyntheticTask.random_start(rng)
+        return ContextualSyntheticTask(w0)
     if spec == "door":
         from corl.tasks.door.task import DoorTask
 

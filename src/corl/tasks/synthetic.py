@@ -22,7 +22,8 @@ import numpy as np
 from corl.errors import InputError
 from corl.problem import Bounds, Demonstration, Outcome
 
-__all__ = ["SyntheticTask", "SAFE_LOW", "SAFE_HIGH", "W_OPT", "distance_to_safe"]
+__all__ = ["SyntheticTask", "ContextualSyntheticTask", "optimum_of", "CONTEXT_BOUNDS", "SAFE_LOW", "SAFE_HIGH", "W_OPT",
+           "distance_to_safe"]
 
 SAFE_LOW, SAFE_HIGH = -1.5, 2.5
 W_OPT = np.array([1.0, 0.0])
@@ -91,3 +92,62 @@ class SyntheticTask:
         if margin < self.critical_distance:
             info["boundary_distance"] = margin
         return Outcome(True, return_of(theta), info)
+
+
+#: The synthetic family's context box: one coordinate ``c`` in [-1, 1].
+CONTEXT_BOUNDS = Bounds(np.array([-1.0]), np.array([1.0]))
+SHIFT, STRETCH = 0.5, 0.2  # theta*(c) = SHIFT c; the circle of J has radius 1 + STRETCH c
+
+
+def optimum_of(c: float) -> tuple[float, np.ndarray]:
+    """The closed-form optimum of :class:`ContextualSyntheticTask` in context ``c``: ``(theta*, w*)``."""
+    theta = SHIFT * float(c)
+    rho = 1.0 + STRETCH * float(c)
+    return theta, rho * np.array([math.cos(theta), math.sin(theta)])
+
+
+class ContextualSyntheticTask(SyntheticTask):
+    """The synthetic benchmark with one context ``c`` in [-1, 1] (a scene that moves):
+
+        J(w; c)        = (w1^2 + w2^2 - rho(c)^2)^2,    rho(c) = 1 + 0.2 c
+        R(theta; c)    = -0.5 (theta - 0.5 c)^2 + cos(3 (theta - 0.5 c))
+        S(theta; c)    = [-1.5 < theta - 0.5 c < 2.5]
+        h(w, theta)    = atan2(w2, w1) - theta            (theta keeps its meaning: an angle)
+
+    so ``theta*(c) = 0.5 c``, ``R = 1`` there and ``w*(c) = rho(c) (cos theta*, sin theta*)``
+    (:func:`optimum_of`). ``c = 0`` is the paper's problem. The demonstration is recorded in the
+    task's own context; it succeeds in every context of the box (its theta is inside every S).
+    """
+
+    name = "synthetic-context"
+    context_bounds = CONTEXT_BOUNDS
+    context_labels = ("scene shift c",)
+
+    def __init__(self, w0=(0.5, 0.5), *, critical_distance: float = 0.5, context=0.0) -> None:
+        from corl.problem import check_theta
+
+        super().__init__(w0, critical_distance=critical_distance)
+        self.context = check_theta(context, CONTEXT_BOUNDS, task=self.name, what="context")
+
+    def with_context(self, c) -> "ContextualSyntheticTask":
+        return ContextualSyntheticTask(self.w0, critical_distance=self.critical_distance, context=c)
+
+    @property
+    def _shift(self) -> float:
+        return SHIFT * float(self.context[0])
+
+    def cost_residuals(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        rho = 1.0 + STRETCH * float(self.context[0])
+        r = w[0] * w[0] + w[1] * w[1] - rho * rho
+        return np.array([r]), np.array([[2.0 * w[0], 2.0 * w[1]]])
+
+    def rollout(self, w: np.ndarray) -> Outcome:
+        theta = math.atan2(w[1], w[0])
+        u = theta - self._shift
+        info = {"theta": theta}
+        if not SAFE_LOW < u < SAFE_HIGH:
+            return Outcome(False, None, info)
+        margin = min(u - SAFE_LOW, SAFE_HIGH - u)
+        if margin < self.critical_distance:
+            info["boundary_distance"] = margin
+        return Outcome(True, return_of(u), info)

@@ -1,0 +1,228 @@
+"""Learning in one context with what every other context taught: :class:`ContextualCORL`.
+
+Algorithm 1 runs unchanged in scene ``c`` (``task.with_context(c)``), with two differences:
+
+* it starts from the skill's policy for ``c`` (:meth:`corl.contexts.Skill.policy`) instead of
+  the demonstration, so its first trial is already the learned motion realised in this scene;
+* its black-box step fits g_R and g_S over ``(theta, c)`` on the trials of every context
+  (:class:`~corl.contexts.models.ContextualModels`) and proposes with SEIB at ``c``, keeping its
+  safety rules (a safe start first, never a theta without a success probability in the band).
+
+When the start itself fails, the failure joins the data and the next start is tried: the motion
+at the nearest learned context's ``theta*`` (its anchor), then the scene's own demonstration
+when the task gives one that satisfies h there. The learner speaks ask/tell like :class:`CORL`;
+its trials are numbered across starts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from corl.contexts.models import ContextData, ContextualModels
+from corl.contexts.skill import Skill, context_task
+from corl.errors import DemonstrationFailedError, InputError, StateError
+from corl.learner import CORL
+from corl.loop import drive
+from corl.optimizers.base import StopReason
+from corl.problem import Demonstration, Outcome, Proposal, Task, context_of
+from corl.realise import check_demonstration
+
+__all__ = ["ContextualCORL", "StartedTask", "contextual_factory", "plain_learner"]
+
+
+class StartedTask:
+    """A task whose demonstration is replaced by a given start ``(w, theta)`` (every other member is the task's)."""
+
+    def __init__(self, task: Task, start: Demonstration) -> None:
+        self._task, self._start = task, start
+
+    def demonstration(self) -> Demonstration:
+        return Demonstration(np.array(self._start.w, dtype=float), np.array(self._start.theta, dtype=float))
+
+    def retimed(self, time_map):
+        inner = getattr(self._task, "retimed")(time_map)
+        return StartedTask(inner, self._start)
+
+    def __getattr__(self, name):
+        if name.startswith("__") or name in ("_task", "_start"):
+            raise AttributeError(name)
+        if name == "retimed" and getattr(self._task, "retimed", None) is None:
+            raise AttributeError(name)
+        return getattr(self._task, name)
+
+
+def contextual_factory(task: Task, settings, prior: ContextData, context):
+    """``(bounds, theta_start, rng) -> optimizer``: SEIB at ``context`` on GPs over ``(theta, c)``."""
+    from corl.optimizers.safe import SAFE_BO_CONFIG, SafeBOOptimizer
+
+    seib = settings.optimizer_settings().seib
+    m = task.theta_bounds.dim
+    if int(np.sum(prior.success)) >= seib.trust_per_dim * m:
+        # SEIB opens its gate while a scene has few successes, since its models cannot be trusted yet;
+        # across contexts they can once the other scenes give that many successes
+        # and the valleys of R were crossed in those scenes already: no far looks in this one
+        seib = replace(seib, trust_per_dim=0, far_reach=())
+    if seib.far_lengthscale is not None:
+        raise InputError("SEIBConfig.far_lengthscale is not supported across contexts; leave it None")
+    regression = settings.regression
+    classifier = settings.classifier
+    rp = regression.priors
+    cp = classifier.priors
+
+    def build(bounds, x0, rng):
+        opt = SafeBOOptimizer(bounds, SAFE_BO_CONFIG, seib, max_evals=2**62, seed=rng, start=x0)
+        opt.models = ContextualModels(task.theta_bounds, task.context_bounds, prior, context,
+                                      regression_priors=rp, classifier_priors=cp, prior_mean=classifier.prior_mean)
+        return opt
+
+    return build
+
+
+def plain_learner(task: Task, *, seed: int = 0, settings=None) -> CORL:
+    """Algorithm 1 in the task's own context from its demonstration (the first context of a skill),
+    with the same black-box step as every later context (SEIB on fitted GPs over ``(theta, c)``,
+    with no other context's data yet)."""
+    from corl.methods import settings_for
+
+    task = context_task(task)
+    settings = settings_for(task) if settings is None else settings
+    m, k = task.theta_bounds.dim, task.context_bounds.dim
+    factory = contextual_factory(task, settings, ContextData.empty(m, k), context_of(task))
+    return CORL(task, factory, settings.corl, seed=seed)
+
+
+class ContextualCORL:
+    """Algorithm 1 in context ``c``, started from ``skill`` and learning over ``(theta, c)``.
+
+    Parameters
+    ----------
+    task : a task with contexts (any member of its family).
+    context : (k,) the scene to learn in, inside the box.
+    skill : :class:`Skill` of the contexts learned so far.
+    settings : :class:`corl.settings.MethodSettings` (default: the task's); its CORLConfig
+        bounds the run, the GP priors come from its regression and classifier configs.
+    seed : seeds the black-box step.
+    """
+
+    def __init__(self, task: Task, context, skill: Skill, *, settings=None, seed: int = 0) -> None:
+        from corl.methods import settings_for
+
+        self.base = context_task(task)
+        self.skill = skill
+        self.context = skill.check_context(context)
+        self.scene = self.base.with_context(self.context)
+        self.settings = settings_for(self.scene) if settings is None else settings
+        self.config = self.settings.corl
+        self.seed = int(seed)
+        self.history: list[tuple[Proposal, Outcome]] = []
+        self.J_history: list[tuple[int, float]] = []
+        self.starts_tried = 0
+        self._starts = self._start_list()
+        self._local = ContextData.empty(self.base.theta_bounds.dim, self.base.context_bounds.dim)
+        self._offset = 0
+        self._inner: CORL | None = None
+        self._end: StopReason | None = None
+        self._detail = ""
+        self.start_kind = ""
+        self._next_start()
+
+    # -- the starts ----------------------------------------------------------------------------
+    def _start_list(self):
+        """Lazily: the skill's policy, the nearest anchor's theta*, the scene's own demonstration."""
+        yield "skill", lambda: self.skill.policy(self.context)
+
+        def anchor():
+            a = self.skill.nearest(self.context)
+            w, ok = self.skill.motion(self.context, a.theta, a)
+            return Demonstration(w, a.theta) if ok else None
+
+        yield "anchor", anchor
+
+        def own():
+            try:
+                return check_demonstration(self.scene, tolerance=self.config.demo_tolerance)
+            except (InputError, AttributeError, NotImplementedError):
+                return None
+
+        yield "demonstration", own
+
+    def _next_start(self) -> bool:
+        prior = self.skill.data + self._local
+        for name, make in self._starts:
+            start = make()
+            if start is None or not getattr(start, "feasible", True):
+                continue
+            demo = Demonstration(np.asarray(start.w, dtype=float), np.asarray(start.theta, dtype=float))
+            if any(np.linalg.norm(demo.w - p.w) < self.config.eps_w for p, o in self.history if not o.success):
+                continue  # this very motion failed already
+            self.start_kind = name
+            self.starts_tried += 1
+            self._offset = len(self.history)
+            factory = contextual_factory(self.base, self.settings, prior, self.context)
+            self._inner = CORL(StartedTask(self.scene, demo), factory, self.config, seed=self.seed)
+            return True
+        self._inner = None
+        self._end = StopReason.NO_SAFE_POINT
+        self._detail = f"every start failed in context {np.array2string(self.context, precision=4)}"
+        return False
+
+    # -- ask / tell ----------------------------------------------------------------------------
+    def ask(self) -> Proposal:
+        if self._inner is None:
+            raise StateError("the contextual learner has finished; read .best")
+        p = self._inner.ask()
+        return replace(p, index=p.index + self._offset)
+
+    def tell(self, outcome: Outcome) -> None:
+        if self._inner is None:
+            raise StateError("tell() without a pending ask(): the contextual learner has finished")
+        inner = self._inner
+        pending = inner._pending if inner._asked else None
+        try:
+            inner.tell(outcome)
+        except DemonstrationFailedError:  # the start failed: learn from it and try the next start
+            self._record(pending, outcome)
+            self._local = self._local.add(pending.theta, self.context, False, None)
+            self._next_start()
+            return
+        self._record(pending, outcome)
+
+    def _record(self, proposal: Proposal, outcome: Outcome) -> None:
+        proposal = replace(proposal, index=proposal.index + self._offset)
+        self.history.append((proposal, outcome))
+        r, _ = self.scene.cost_residuals(proposal.w)
+        self.J_history.append((proposal.index, float(np.dot(r, r))))
+
+    def run(self, task: Task | None = None, *, max_trials: int | None = None, callback=None):
+        drive(self, task or self.scene, max_trials=max_trials, callback=callback)
+        return self.best
+
+    # -- results -------------------------------------------------------------------------------
+    @property
+    def done(self) -> bool:
+        return self._inner is None or self._inner.done
+
+    @property
+    def stop_reason(self) -> StopReason | None:
+        if self._inner is None:
+            return self._end
+        return self._inner.stop_reason
+
+    @property
+    def stop_detail(self) -> str:
+        return self._detail if self._inner is None else self._inner.stop_detail
+
+    @property
+    def best(self):
+        return None if self._inner is None else self._inner.best
+
+    @property
+    def rl_trials(self) -> int:
+        return 0 if self._inner is None else self._inner.rl_trials
+
+    def __getattr__(self, name):  # unrealisable, known_failures, rounds, ... of the current CORL
+        if name.startswith("_") or self.__dict__.get("_inner") is None:
+            raise AttributeError(name)
+        return getattr(self._inner, name)

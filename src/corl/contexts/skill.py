@@ -1,0 +1,204 @@
+"""A learned skill for any scene in the context box: ``Skill.policy(c)``, with no trial.
+
+What a skill holds: the task (with contexts, :class:`corl.problem.HasContexts`), the black-box
+data of every context learned (:class:`~corl.contexts.models.ContextData`) and one anchor per
+learned context, its best policy ``(w*, theta*)``. For a context ``c`` it answers
+
+1. theta: the maximiser of g_R's posterior mean over ``(theta, c)`` among the thetas whose
+   success probability at ``c`` (g_S over ``(theta, c)``) is at least ``p_min``; when none is, the
+   theta most likely to succeed;
+2. w: the nearest anchor's ``w*`` (distance of contexts in the unit box) realised in scene ``c``
+   at that theta by Eq. 18 (:func:`corl.realise.realise`), then improved by step 1 of
+   Algorithm 1 run to convergence (Eq. 8 without a trust region: J and h are analytic, so this
+   needs no rollout);
+3. how sure: ``p_success`` and the posterior mean and std of R there.
+
+A context outside the box is refused (:class:`~corl.errors.InputError`, one line).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from corl.contexts.models import Anchor, ContextData, joint_bounds
+from corl.errors import InputError
+from corl.gp.fitting import ClassifierPriors, RegressionPriors, fit_classifier, fit_regression
+from corl.problem import Bounds, Task, check_theta, context_of
+from corl.realise import feasible, motion_problem, realise
+from corl.trajectory.solver import SolverConfig, solve
+
+__all__ = ["Anchor", "Policy", "Skill", "P_MIN", "context_task"]
+
+P_MIN = 0.7  # a skill proposes a theta it predicts to succeed at least this often: SEIB's inner region (p_inner)
+P_SLACK = 0.05  # where no theta reaches p_min: those within this of the surest one count as likely
+_CANDIDATES = 512  # random thetas per policy, besides the data and the anchors
+
+
+def context_task(task: Task) -> Task:
+    """``task`` if it has contexts, else one :class:`InputError` saying what to add."""
+    if context_of(task) is None:
+        raise InputError(f"task '{getattr(task, 'name', '?')}' has no contexts: give it context_bounds, context and "
+                         "with_context(c) (see corl.problem.HasContexts and the README's 'One skill, many scenes')")
+    return task
+
+
+@dataclass(frozen=True, eq=False)
+class Policy:
+    """What :meth:`Skill.policy` proposes for ``context``.
+
+    ``w`` (n,) the motion, ``theta`` (m,) what it realises; ``p_success`` g_S's success probability
+    there; ``R_mean``, ``R_std`` g_R's posterior; ``J`` the analytic cost; ``nearest`` the anchor
+    context its motion was realised from; ``feasible``: ``h(w, theta) = 0`` holds in this scene.
+    """
+
+    context: np.ndarray
+    w: np.ndarray
+    theta: np.ndarray
+    p_success: float
+    R_mean: float
+    R_std: float
+    J: float
+    nearest: np.ndarray
+    feasible: bool
+
+    def __iter__(self):  # w, theta, p_success, R_mean = skill.policy(c)
+        return iter((self.w, self.theta, self.p_success, self.R_mean))
+
+
+class Skill:
+    """One skill for every scene of the context box.
+
+    Parameters
+    ----------
+    task : a task with contexts (the one the demonstration was recorded in, or any of its family).
+    data : the black-box trials of every context learned.
+    anchors : the best policy of each learned context (at least one).
+    p_min : the success probability a proposed theta needs (:data:`P_MIN`).
+    solver : the motion solver's settings (Eq. 18 and step 1).
+    """
+
+    def __init__(self, task: Task, data: ContextData, anchors: list[Anchor], *, p_min: float = P_MIN,
+                 solver: SolverConfig = SolverConfig(), seed: int = 0) -> None:
+        self.task = context_task(task)
+        self.context_bounds: Bounds = task.context_bounds
+        self.theta_bounds: Bounds = task.theta_bounds
+        if not anchors:
+            raise InputError("a skill needs at least one learned context: run corl in one context first "
+                             "(corl run TASK --context ...)")
+        if not (0.0 < float(p_min) < 1.0):
+            raise InputError(f"p_min must lie in (0, 1), got {p_min!r}")
+        self.data, self.anchors, self.p_min, self.solver = data, list(anchors), float(p_min), solver
+        self.seed = int(seed)
+
+    # -- the models ----------------------------------------------------------------------------
+    @cached_property
+    def _joint(self) -> Bounds:
+        return joint_bounds(self.theta_bounds, self.context_bounds)
+
+    @cached_property
+    def models(self):
+        """g_R (on successes) and g_S (on every trial) over ``(theta, c)``, fitted once."""
+        d = self.data
+        X = np.hstack([d.theta, d.context])
+        ok = d.success & np.isfinite(d.returns)
+        regression = None
+        if np.any(ok):
+            regression = fit_regression(X[ok], d.returns[ok], self._joint, RegressionPriors()).model
+        classifier = fit_classifier(X, d.success, self._joint, -7.0, ClassifierPriors()).model
+        return regression, classifier
+
+    def check_context(self, c) -> np.ndarray:
+        """``c`` as a point (k,) of the context box, or one :class:`InputError` naming the box."""
+        try:
+            return check_theta(c, self.context_bounds, task=getattr(self.task, "name", "task"), what="context")
+        except InputError as exc:
+            raise InputError(f"{exc}; the skill learned this box only, so it cannot say what to do there") from None
+        except (TypeError, ValueError):
+            raise InputError(f"a context must be {self.context_bounds.dim} numbers, got {c!r:.60}") from None
+
+    def nearest(self, c) -> Anchor:
+        """The anchor whose context is nearest ``c`` in the unit box."""
+        u = self.context_bounds.to_unit(np.asarray(c, dtype=float))
+        dist = [float(np.linalg.norm(self.context_bounds.to_unit(a.context) - u)) for a in self.anchors]
+        return self.anchors[int(np.argmin(dist))]
+
+    def predict(self, theta, c) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``p_success``, ``R_mean``, ``R_std`` at thetas (s, m) in context ``c`` (k,); each (s,)."""
+        theta = np.asarray(theta, dtype=float).reshape(-1, self.theta_bounds.dim)
+        X = np.hstack([theta, np.broadcast_to(np.asarray(c, dtype=float), (len(theta), self.context_bounds.dim))])
+        regression, classifier = self.models
+        p = classifier.predict_proba(X)
+        if regression is None:
+            return p, np.full(len(X), np.nan), np.full(len(X), np.nan)
+        mu, var = regression.predict(X)
+        return p, mu, np.sqrt(np.maximum(var, 0.0))
+
+    def choose_theta(self, c) -> np.ndarray:
+        """The theta to try at ``c``: best predicted return among those likely to succeed (module docstring)."""
+        c = self.check_context(c)
+        rng = np.random.default_rng([self.seed, 7])
+        cand = np.vstack([self.data.theta, [a.theta for a in self.anchors],
+                          self.theta_bounds.from_unit(rng.random((_CANDIDATES, self.theta_bounds.dim)))])
+        near = self.nearest(c).theta
+        local = near + 0.05 * self.theta_bounds.width * rng.standard_normal((_CANDIDATES // 2, self.theta_bounds.dim))
+        cand = np.vstack([cand, self.theta_bounds.clip(local)])
+        p, mu, _ = self.predict(cand, c)
+        # likely to succeed: p_min, or, where the skill is nowhere that sure (a scene far from every
+        # learned one), within P_SLACK of the surest theta
+        likely = p >= min(self.p_min, float(np.max(p)) - P_SLACK)
+        if np.all(np.isfinite(mu[likely])):
+            idx = np.flatnonzero(likely)[int(np.argmax(mu[likely]))]
+        else:
+            idx = int(np.argmax(p))
+        return cand[idx].copy()
+
+    # -- the motion ----------------------------------------------------------------------------
+    def motion(self, c, theta, anchor: Anchor | None = None) -> tuple[np.ndarray, bool]:
+        """``w`` realising ``theta`` in scene ``c``: the anchor's ``w*`` by Eq. 18, then step 1 to
+        convergence; ``(w, feasible)``."""
+        c = self.check_context(c)
+        theta = check_theta(theta, self.theta_bounds, task=self.task.name)
+        anchor = self.nearest(c) if anchor is None else anchor
+        scene = self.task.with_context(c)
+        done = realise(scene, anchor.w, anchor.theta, theta, self.solver)
+        if not done.feasible:
+            return done.w, False
+        result = solve(motion_problem(scene, theta), done.w, config=self.solver)
+        if feasible(result, self.solver) and _cost(scene, result.w) <= _cost(scene, done.w):
+            return result.w, True
+        return done.w, True
+
+    def policy(self, c) -> Policy:
+        """The motion to execute in context ``c``, its theta and how sure the skill is (no trial)."""
+        c = self.check_context(c)
+        anchor = self.nearest(c)
+        theta = self.choose_theta(c)
+        w, ok = self.motion(c, theta, anchor)
+        if not ok:  # Eq. 18 cannot reach this theta from the anchor: the anchor's own theta
+            theta = anchor.theta.copy()
+            w, ok = self.motion(c, theta, anchor)
+        p, mu, sd = self.predict(theta[None], c)
+        return Policy(c, w, theta, float(p[0]), float(mu[0]), float(sd[0]), _cost(self.task.with_context(c), w),
+                      anchor.context.copy(), ok)
+
+    # -- from a store --------------------------------------------------------------------------
+    @classmethod
+    def load(cls, store, task: Task, **kw) -> "Skill":
+        """The skill learned in a run store (a path or an open :class:`corl.store.RunStore`): every run of
+        ``task`` in it, each in its context (:func:`corl.contexts.stored.learned`)."""
+        from corl.contexts.stored import learned
+
+        data, anchors = learned(store, context_task(task))
+        return cls(task, data, anchors, **kw)
+
+    def __repr__(self) -> str:
+        return (f"Skill(task={self.task.name!r}, contexts={len(self.anchors)}, trials={len(self.data)}, "
+                f"p_min={self.p_min})")
+
+
+def _cost(task: Task, w: np.ndarray) -> float:
+    r, _ = task.cost_residuals(w)
+    return float(np.dot(r, r))

@@ -1,0 +1,204 @@
+"""``corl bench contexts``: one skill across scenes against learning each scene from scratch.
+
+Train on N contexts (the demonstration's own, then N - 1 drawn uniformly from the box), every
+run in one store (:mod:`corl.contexts`), in turn, each learning from the runs before it. Then, in
+each of M held-out test contexts drawn from the box, side by side:
+
+* **contextual**: the skill's policy, then learning in that scene (:class:`ContextualCORL`);
+* **scratch**: the default method (CORL) from the scene's own demonstration, alone;
+* **nearest**: the nearest training context's ``w*`` realised in the scene (Eq. 18 at its
+  ``theta*``) and used as it is: one trial.
+
+Each runs until it stops or ``budget`` trials. The ground truth of a test context is a sweep of
+its theta box realised from the scene's demonstration (what ``corl sweep`` does); its best
+return ``R_best`` defines the target ``R >= R_best - 0.05 |R_best|`` (95 % of it for a positive
+return). Per method and test context: whether the first trial succeeded, the trials until the
+target (the budget when never), the failures, and the final return (the best successful one)
+over ``R_best``. Test contexts run in parallel workers, each reading the training store.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from corl.errors import InputError
+
+__all__ = ["METHODS", "TARGET_FRACTION", "draw_contexts", "train", "evaluate_context", "summarise", "bench_contexts"]
+
+METHODS = ("contextual", "scratch", "nearest")
+TARGET_FRACTION = 0.95  # a trial reaches the target at R >= R_best - (1 - TARGET_FRACTION) |R_best|
+GRID_POINTS = 64  # sweep points per test context (spread over theta's dimensions)
+
+
+def draw_contexts(bounds, count: int, rng: np.random.Generator) -> np.ndarray:
+    """``count`` contexts uniform in the box, (count, k)."""
+    return bounds.from_unit(rng.random((count, bounds.dim)))
+
+
+def _task(spec: str, seed: int):
+    from corl.experiments.sweep import TaskSpec
+
+    return TaskSpec(spec, seed)()
+
+
+def train(spec: str, seed: int, contexts: np.ndarray, store: Path, progress=None) -> list[dict]:
+    """Learn in each context in turn, every run in ``store``; one summary per run."""
+    from corl.session import StoredRun
+    from corl.store import RunStore
+
+    task = _task(spec, seed)
+    rows = []
+    for i, c in enumerate(contexts):
+        t0 = time.perf_counter()
+        learned_from = RunStore(store, create=False, readonly=True) if store.exists() else None
+        try:
+            run = StoredRun.new(task, task_spec=spec, method="CORL", seed=seed, context=c, learned_from=learned_from)
+        finally:
+            if learned_from is not None:
+                learned_from.close()
+        with RunStore(store) as db:
+            run.attach(db)
+            run.run(task.with_context(c))
+        h = run.history
+        rows.append({"context": [float(v) for v in c], "trials": len(h), "failures": sum(not o.success for _, o in h),
+                     "best_return": None if run.best is None else float(run.best.return_),
+                     "start": getattr(run.learner, "start_kind", "demonstration") or "demonstration",
+                     "seconds": time.perf_counter() - t0})
+        if progress is not None:
+            progress("train", i + 1, len(contexts), rows[-1])
+    return rows
+
+
+def _grid(dim: int) -> tuple[int, ...]:
+    side = max(3, int(round(GRID_POINTS ** (1.0 / dim))))
+    return (side,) * dim
+
+
+def _scores(outcomes, target: float, budget: int, best_swept: float) -> dict:
+    """What one method did in one context, from its trials' outcomes (in order)."""
+    reach = next((i + 1 for i, o in enumerate(outcomes) if o.success and o.return_ >= target), budget)
+    returns = [o.return_ for o in outcomes if o.success]
+    final = max(returns) if returns else None
+    ratio = 0.0 if final is None else float(final / best_swept) if best_swept != 0 else float("nan")
+    return {"trials": len(outcomes), "first_trial_success": bool(outcomes and outcomes[0].success),
+            "trials_to_95": int(reach), "failures": sum(not o.success for o in outcomes),
+            "final_return": final, "final_return_ratio": ratio}
+
+
+def evaluate_context(spec: str, seed: int, store: str, context, budget: int, grid=None) -> dict:
+    """The three methods and the sweep in one test context (runs in a worker)."""
+    from corl.contexts import ContextualCORL, Skill
+    from corl.experiments.sweep import _solver, evaluate_points
+    from corl.loop import drive
+    from corl.methods import make_method
+    from corl.realise import realise
+
+    task = _task(spec, seed)
+    c = np.asarray(context, dtype=float)
+    scene = task.with_context(c)
+    t0 = time.perf_counter()
+    # ground truth: the sweep of this scene from its own demonstration
+    demo = scene.demonstration()
+    bounds = scene.theta_bounds
+    sizes = tuple(grid) if grid is not None else _grid(bounds.dim)
+    axes = [np.linspace(lo, hi, g) for lo, hi, g in zip(bounds.lower, bounds.upper, sizes)]
+    points = np.column_stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")])
+    success, _, returns = evaluate_points(scene, demo.w, demo.theta, points)
+    if not np.any(success):
+        raise InputError(f"no theta of the sweep succeeds in context {c.tolist()}; the ground truth is missing")
+    best_swept = float(np.nanmax(returns))
+    theta_swept = points[int(np.nanargmax(returns))]
+    target = best_swept - (1.0 - TARGET_FRACTION) * abs(best_swept)
+    t_sweep = time.perf_counter() - t0
+    out = {"context": c.tolist(), "best_swept": best_swept, "theta_swept": theta_swept.tolist(),
+           "target": target, "sweep_points": int(len(points)), "seconds": {"sweep": t_sweep}}
+
+    skill = Skill.load(store, task)
+    policy = skill.policy(c)
+    out["policy"] = {"theta": policy.theta.tolist(), "p_success": policy.p_success, "R_mean": policy.R_mean,
+                     "R_std": policy.R_std, "nearest": policy.nearest.tolist()}
+    learners = {"contextual": lambda: ContextualCORL(task, c, skill, seed=seed),
+                "scratch": lambda: make_method("CORL", scene, seed=seed)}
+    for name, build in learners.items():
+        t0 = time.perf_counter()
+        learner = build()
+        drive(learner, scene, max_trials=budget)
+        outcomes = [o for _, o in learner.history]
+        out[name] = _scores(outcomes, target, budget, best_swept)
+        best = learner.best
+        out[name]["theta"] = None if best is None else np.asarray(best.theta).tolist()
+        out["seconds"][name] = time.perf_counter() - t0
+    # nearest: the nearest training context's w* realised here at its theta*, used as is
+    t0 = time.perf_counter()
+    anchor = skill.nearest(c)
+    solver = _solver(scene)  # the solver the learner would use in this scene
+    done = realise(scene, anchor.w, anchor.theta, anchor.theta, solver)
+    if done.feasible:
+        outcomes = [scene.rollout(done.w)]
+    else:  # not realisable here: it cannot be run, a failure without a rollout
+        from corl.problem import Outcome
+
+        outcomes = [Outcome(False, None, {"unrealisable": True})]
+    out["nearest"] = _scores(outcomes, target, budget, best_swept)
+    out["nearest"]["theta"] = anchor.theta.tolist()
+    out["seconds"]["nearest"] = time.perf_counter() - t0
+    return out
+
+
+def summarise(per_context: list[dict]) -> dict:
+    """Means over the test contexts, per method (the ``methods`` table of contexts.json)."""
+    table = {}
+    for name in METHODS:
+        rows = [r[name] for r in per_context]
+        table[name] = {"first_trial_success": float(np.mean([r["first_trial_success"] for r in rows])),
+                       "trials_to_95": float(np.mean([r["trials_to_95"] for r in rows])),
+                       "failures": float(np.mean([r["failures"] for r in rows])),
+                       "final_return_ratio": float(np.mean([r["final_return_ratio"] for r in rows])),
+                       "trials": float(np.mean([r["trials"] for r in rows]))}
+    return table
+
+
+@dataclass(frozen=True)
+class _Job:
+    spec: str
+    seed: int
+    store: str
+    budget: int
+
+    def __call__(self, context):
+        return evaluate_context(self.spec, self.seed, self.store, context, self.budget)
+
+
+def bench_contexts(spec: str, *, train_count: int, test_count: int, seed: int, out: Path, budget: int = 40,
+                   jobs: int = 1, progress=None) -> dict:
+    """The whole study; writes ``out/train.corl`` (the skill) and returns the contexts.json payload."""
+    from joblib import Parallel, delayed
+
+    from corl.contexts import context_task
+    from corl.versions import library_versions
+
+    task = context_task(_task(spec, seed))
+    box = task.context_bounds
+    rng = np.random.default_rng([seed, 22])
+    contexts = np.vstack([np.asarray(task.context, dtype=float)[None], draw_contexts(box, train_count - 1, rng)])
+    tests = draw_contexts(box, test_count, np.random.default_rng([seed, 22, 1]))
+    store = Path(out) / "train.corl"
+    if store.exists():
+        raise InputError(f"{store} exists; choose another --out (the bench trains a fresh skill)")
+    t0 = time.perf_counter()
+    trained = train(spec, seed, contexts, store, progress)
+    t_train = time.perf_counter() - t0
+    job = _Job(spec, seed, str(store), budget)
+    per_context = []
+    with Parallel(n_jobs=jobs, return_as="generator") as parallel:
+        for i, row in enumerate(parallel(delayed(job)(c) for c in tests)):
+            per_context.append(row)
+            if progress is not None:
+                progress("test", i + 1, len(tests), row)
+    return {"task": spec, "seed": seed, "train": trained, "test": per_context, "methods": summarise(per_context),
+            "budget": budget, "target_fraction": TARGET_FRACTION, "train_seconds": t_train,
+            "wall_seconds": time.perf_counter() - t0, "versions": library_versions()}
