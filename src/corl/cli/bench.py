@@ -14,7 +14,7 @@ from corl.cli.common import (
     write_json,
 )
 
-__all__ = ["bench_synthetic", "bench_door", "sweep"]
+__all__ = ["bench_synthetic", "bench_door", "bench_contexts", "sweep"]
 
 
 def bench_synthetic(
@@ -169,3 +169,54 @@ def sweep(
     typer.echo(f"{payload['successes']}/{payload['points']} grid points succeed ({payload['unrealised']} unrealisable); "
                f"wrote {', '.join(v for k, v in payload['files'].items() if not k.endswith('_skipped'))}")
 
+
+
+def bench_contexts(
+    task: str = typer.Argument(..., help="a task with contexts: 'synthetic-context', 'door', or 'package.module:make_task'"),
+    train: int = typer.Option(8, help="training contexts: the demonstration's own, then TRAIN-1 drawn from the box"),
+    test: int = typer.Option(8, help="held-out test contexts drawn from the box"),
+    seed: int = typer.Option(0, help="seed of the contexts and the methods"),
+    budget: int = typer.Option(40, help="trials per method and test context (each stops earlier when it converges)"),
+    out: Path = typer.Option(Path("results/contexts"), help="output folder for contexts.json, the figure, train.corl"),
+    jobs: int = typer.Option(2, help="parallel workers over the test contexts (-1: all cores)"),
+    quiet: bool = QUIET, json_out: bool = JSON_OUT, log: bool = LOG,
+) -> None:
+    """One skill, many scenes: the skill learned on TRAIN contexts against learning each test context
+    from scratch and against the nearest training context's motion, beside a sweep of each test context."""
+    import time
+
+    from corl.errors import CorlError
+    from corl.experiments.contexts import bench_contexts as study, contexts_table, plot_contexts
+
+    check_args(task=("TASK", task), seed=("--seed", seed), jobs=("--jobs", jobs), folder=("--out", out))
+    for flag, value, low, high in (("--train", train, 1, 1000), ("--test", test, 1, 1000), ("--budget", budget, 1, 10000)):
+        if not low <= value <= high:
+            fail(f"{flag} must be an integer in [{low}, {high}], got {value}")
+    NEW_PATHS.track(out)
+    make_folder("--out", out)
+    t0 = time.perf_counter()
+    with progress_tracker(f"bench contexts {task}", quiet=quiet, log=log, json_out=json_out) as tracker:
+        tracker.add_stage("train", total=train)
+        tracker.add_stage("test", total=test)
+
+        def tick(stage, done, total, row):
+            if stage == "train":
+                note = f"context {done}: {row['trials']} trials, {row['failures']} failed, start {row['start']}"
+                return tracker.update("train", done=done, total=total, failures=row["failures"], note=note)
+            c = row["contextual"]
+            tracker.update("test", done=done, total=total, failures=c["failures"],
+                           note=f"contextual: {c['trials_to_95']} trials to 95%, scratch {row['scratch']['trials_to_95']}")
+
+        try:
+            payload = study(task, train_count=train, test_count=test, seed=seed, out=out, budget=budget, jobs=jobs,
+                            progress=tick)
+        except CorlError as exc:
+            fail(str(exc))
+    payload["wall_seconds"] = time.perf_counter() - t0
+    write_json(out / "contexts.json", payload)
+    figure = plot_contexts(payload, out / "contexts_theta.png", labels=payload.get("theta_labels"))
+    if json_out:
+        return print_json({**payload, "file": str(out / "contexts.json"), "figure": str(figure)})
+    typer.echo(contexts_table(payload))
+    typer.echo(f"\n{train} training and {test} test contexts in {payload['wall_seconds']:.1f} s; wrote "
+               f"{out / 'contexts.json'}, {figure} and the skill's store {out / 'train.corl'}")

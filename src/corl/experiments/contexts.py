@@ -1,6 +1,7 @@
 """``corl bench contexts``: one skill across scenes against learning each scene from scratch.
 
-Train on N contexts (the demonstration's own, then N - 1 drawn uniformly from the box), every
+Train on N contexts (the demonstration's own, then N - 1 spread over the box by a Latin
+hypercube), every
 run in one store (:mod:`corl.contexts`), in turn, each learning from the runs before it. Then, in
 each of M held-out test contexts drawn from the box, side by side:
 
@@ -27,16 +28,21 @@ import numpy as np
 
 from corl.errors import InputError
 
-__all__ = ["METHODS", "TARGET_FRACTION", "draw_contexts", "train", "evaluate_context", "summarise", "bench_contexts"]
+__all__ = ["METHODS", "TARGET_FRACTION", "draw_contexts", "train", "evaluate_context", "summarise", "bench_contexts",
+           "contexts_table", "plot_contexts"]
 
 METHODS = ("contextual", "scratch", "nearest")
 TARGET_FRACTION = 0.95  # a trial reaches the target at R >= R_best - (1 - TARGET_FRACTION) |R_best|
 GRID_POINTS = 64  # sweep points per test context (spread over theta's dimensions)
 
 
-def draw_contexts(bounds, count: int, rng: np.random.Generator) -> np.ndarray:
-    """``count`` contexts uniform in the box, (count, k)."""
-    return bounds.from_unit(rng.random((count, bounds.dim)))
+def draw_contexts(bounds, count: int, rng: np.random.Generator, *, spread: bool = False) -> np.ndarray:
+    """``count`` contexts uniform in the box, (count, k); ``spread``: a Latin hypercube (one per
+    stratum of each coordinate), so that training contexts cover the box however few they are."""
+    if not spread:
+        return bounds.from_unit(rng.random((count, bounds.dim)))
+    u = (np.argsort(rng.random((bounds.dim, count)), axis=1).T + rng.random((count, bounds.dim))) / max(count, 1)
+    return bounds.from_unit(u)
 
 
 def _task(spec: str, seed: int):
@@ -184,7 +190,7 @@ def bench_contexts(spec: str, *, train_count: int, test_count: int, seed: int, o
     task = context_task(_task(spec, seed))
     box = task.context_bounds
     rng = np.random.default_rng([seed, 22])
-    contexts = np.vstack([np.asarray(task.context, dtype=float)[None], draw_contexts(box, train_count - 1, rng)])
+    contexts = np.vstack([np.asarray(task.context, dtype=float)[None], draw_contexts(box, train_count - 1, rng, spread=True)])
     tests = draw_contexts(box, test_count, np.random.default_rng([seed, 22, 1]))
     store = Path(out) / "train.corl"
     if store.exists():
@@ -199,6 +205,50 @@ def bench_contexts(spec: str, *, train_count: int, test_count: int, seed: int, o
             per_context.append(row)
             if progress is not None:
                 progress("test", i + 1, len(tests), row)
-    return {"task": spec, "seed": seed, "train": trained, "test": per_context, "methods": summarise(per_context),
+    return {"task": spec, "seed": seed, "theta_labels": list(getattr(task, "theta_labels", None) or []) or None,
+            "context_labels": list(getattr(task, "context_labels", None) or []) or None, "train": trained, "test": per_context, "methods": summarise(per_context),
             "budget": budget, "target_fraction": TARGET_FRACTION, "train_seconds": t_train,
             "wall_seconds": time.perf_counter() - t0, "versions": library_versions()}
+
+
+def contexts_table(payload: dict) -> str:
+    """The methods side by side, means over the test contexts (what ``corl bench contexts`` prints)."""
+    m = payload["methods"]
+    lines = [f"{'method':12s} {'first trial ok':>15s} {'trials to 95%':>14s} {'failures':>9s} "
+             f"{'final R / best':>15s} {'trials':>7s}"]
+    for name in METHODS:
+        r = m[name]
+        lines.append(f"{name:12s} {100 * r['first_trial_success']:14.0f}% {r['trials_to_95']:14.2f} "
+                     f"{r['failures']:9.2f} {r['final_return_ratio']:15.3f} {r['trials']:7.1f}")
+    n, k = len(payload["train"]), len(payload["test"])
+    lines.append(f"(means over {k} test contexts; skill trained on {n} contexts; budget {payload['budget']} trials; "
+                 f"target R >= R_best - {1 - payload['target_fraction']:.2f} |R_best| of a {payload['test'][0]['sweep_points']}"
+                 f"-point sweep per context)")
+    return "\n".join(lines)
+
+
+def plot_contexts(payload: dict, path, *, labels=None) -> Path:
+    """theta*(c) learned against the sweep's: per theta coordinate, the skill's first theta and the
+    contextual run's final theta* against the sweep's best theta, one point per test context."""
+    from corl.experiments.figures import _pyplot, _save
+
+    plt = _pyplot()
+    tests = payload["test"]
+    m = len(tests[0]["theta_swept"])
+    labels = list(labels) if labels is not None else [f"theta {j + 1}" for j in range(m)]
+    fig, axes = plt.subplots(1, m, figsize=(4.2 * m, 4.0), squeeze=False)
+    for j, ax in enumerate(axes[0]):
+        swept = np.array([t["theta_swept"][j] for t in tests])
+        skill = np.array([t["policy"]["theta"][j] for t in tests])
+        final = np.array([np.nan if t["contextual"]["theta"] is None else t["contextual"]["theta"][j] for t in tests])
+        lo, hi = float(np.nanmin([swept.min(), skill.min(), np.nanmin(final)])), float(np.nanmax(
+            [swept.max(), skill.max(), np.nanmax(final)]))
+        pad = 0.05 * (hi - lo or 1.0)
+        ax.plot([lo - pad, hi + pad], [lo - pad, hi + pad], color="0.6", lw=1, label="learned = swept")
+        ax.scatter(swept, skill, marker="o", label="skill.policy(c), no trial")
+        ax.scatter(swept, final, marker="x", label="contextual run's theta*")
+        ax.set_xlabel(f"sweep's best {labels[j]}")
+        ax.set_ylabel(f"learned {labels[j]}")
+        ax.set_title(f"theta*(c), {len(tests)} test contexts")
+        ax.legend(fontsize=7)
+    return _save(plt, fig, path)
