@@ -51,32 +51,68 @@ def _task(spec: str, seed: int):
     return TaskSpec(spec, seed)()
 
 
-def train(spec: str, seed: int, contexts: np.ndarray, store: Path, progress=None) -> list[dict]:
-    """Learn in each context in turn, every run in ``store``; one summary per run."""
-    from corl.session import StoredRun
+def _stored_runs(store: Path) -> list:
+    """The runs of ``store`` in the order they were created; none for a missing or empty file (a
+    creation that was killed before its first commit)."""
     from corl.store import RunStore
+    from corl.store.records import EmptyStoreError
+
+    if not store.exists():
+        return []
+    try:
+        with RunStore(store, create=False, readonly=True) as ro:
+            return ro.runs()
+    except EmptyStoreError:
+        return []
+
+
+def _row(c, history, best, start: str, seconds: float) -> dict:
+    return {"context": [float(v) for v in c], "trials": len(history),
+            "failures": sum(not o.success for _, o in history),
+            "best_return": None if best is None else float(best.return_), "start": start or "demonstration",
+            "seconds": seconds}
+
+
+def train(spec: str, seed: int, contexts: np.ndarray, store: Path, progress=None) -> list[dict]:
+    """Learn in each context in turn, every run in ``store``, each from the runs before it; one
+    summary per run. Resumable: the i-th run of the store is context i; a finished one is kept, an
+    unfinished one continued exactly (:meth:`StoredRun.open`), a missing one started."""
+    from corl.session import StoredRun
+    from corl.store import RunStatus, RunStore
 
     task = _task(spec, seed)
     rows = []
     for i, c in enumerate(contexts):
         t0 = time.perf_counter()
-        learned_from = RunStore(store, create=False, readonly=True) if store.exists() else None
-        try:
-            run = StoredRun.new(task, task_spec=spec, method="CORL", seed=seed, context=c, learned_from=learned_from)
-        finally:
-            if learned_from is not None:
-                learned_from.close()
-        with RunStore(store) as db:
-            run.attach(db)
-            run.run(task.with_context(c))
-        h = run.history
-        rows.append({"context": [float(v) for v in c], "trials": len(h), "failures": sum(not o.success for _, o in h),
-                     "best_return": None if run.best is None else float(run.best.return_),
-                     "start": getattr(run.learner, "start_kind", "demonstration") or "demonstration",
-                     "seconds": time.perf_counter() - t0})
+        existing = _stored_runs(store)
+        with RunStore(store, create=False, readonly=True) if existing else _Nothing() as ro:
+            if i < len(existing):
+                info = existing[i]
+                recorded = info.config.get("context")
+                if recorded is None or not np.allclose(recorded, c, rtol=0.0, atol=1e-12):
+                    raise InputError(f"run {info.id} of {store} was learned in context {recorded}, not {c.tolist()}: "
+                                     "this store belongs to another study; choose another --out")
+                run = StoredRun.open(ro, task, info.id)
+            else:
+                run = StoredRun.new(task, task_spec=spec, method="CORL", seed=seed, context=c, learned_from=ro)
+        if i >= len(existing) or existing[i].status is not RunStatus.FINISHED:
+            with RunStore(store) as db:
+                run.attach(db)
+                run.run(task.with_context(c))
+        rows.append(_row(c, run.history, run.best, getattr(run.learner, "start_kind", ""), time.perf_counter() - t0))
         if progress is not None:
             progress("train", i + 1, len(contexts), rows[-1])
     return rows
+
+
+class _Nothing:
+    """``with`` on no store: yields None."""
+
+    def __enter__(self):
+        return None
+
+    def __exit__(self, *exc):
+        return False
 
 
 def _grid(dim: int) -> tuple[int, ...]:
