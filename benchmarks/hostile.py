@@ -2,7 +2,8 @@
 
 Each case runs in a fresh folder holding a store (``s.corl``: the synthetic task, trial 0 told,
 trial 1 pending), a store whose demonstration is pending (``demo.corl``), a finished run
-(``fin.corl``), a plain file (``afile.txt``) and a user task module (``usertask.py``, whose
+(``fin.corl``), a run of ``synthetic-context`` in context 0.5 (``ctx.corl``: trial 0 told, trial 1
+pending; the skill ``corl policy`` reads), a plain file (``afile.txt``) and a user task module (``usertask.py``, whose
 rollouts leave ``rollouts.txt``; some of its factories raise, exit or build tasks whose rollout
 does). A few cases run under a resource limit: a file-size limit stands for a full disk (writes
 past it fail with EFBIG, no root needed), an address-space limit turns a runaway allocation into
@@ -91,7 +92,7 @@ def leaving():
 USERTASK = user_task_source("synthetic")  # stands in for the synthetic task of the stores
 
 
-# Damage done to a copy of s.corl: (label, SQL) or raw bytes.
+# Damage done to a copy of s.corl (or of a case's target store): (label, SQL) or raw bytes.
 DAMAGE = {
     "config not JSON": "UPDATE runs SET config = '{not json'",
     "versions a list": "UPDATE runs SET versions = '[1, 2]'",
@@ -111,13 +112,14 @@ class Case:
     command: str
     label: str
     args: tuple[str, ...]
-    damage: str | None = None  # which damage to apply to s.corl first
+    damage: str | None = None  # which damage to apply to the store ``target`` first
     limits: tuple[tuple[str, int], ...] = ()  # (RLIMIT_ name, bytes) the command runs under
+    target: str = "s.corl"  # the store ``damage`` is done to
 
 
 FULL_DISK = (("FSIZE", 4096),)  # no file grows past 4 kB: a disk that fills up while a result is written
 MEMORY_CAP = (("AS", 4 * 2**30),)  # a runaway allocation is a MemoryError, not the OOM killer
-STORES = ("s.corl", "demo.corl", "fin.corl")
+STORES = ("s.corl", "demo.corl", "fin.corl", "ctx.corl")
 
 
 @dataclass
@@ -199,7 +201,7 @@ def cases() -> list[Case]:
         Case("bench door", "--force-noise nan", ("bench", "door", "--force-noise", "nan", "--out", "d")),
         Case("bench synthetic", "--methods ','", ("bench", "synthetic", "--methods", ",", "--out", "b")),
         Case("bench synthetic", "--starts 200000000", ("bench", "synthetic", "--starts", "200000000", "--out", "b")),
-        *_sweep_cases(), *_run_cases(),
+        *_sweep_cases(), *_run_cases(), *_context_cases(),
     ]
     return out
 
@@ -247,6 +249,52 @@ def _run_cases() -> list[Case]:
     ]
 
 
+def _context_cases() -> list[Case]:
+    """``--context`` of ``corl run`` and ``corl ask``, and ``corl policy``: a context that is no point of the
+    task's context box, a task without contexts, a method that cannot learn in a context, another context
+    than the unfinished run's, a store that learned no context."""
+    run = ("run", "synthetic-context", "--out", "o", "--no-video", "-q", "--store", "new.corl", "--context")
+    ask = ("ask", "--store", "new.corl", "--task", "synthetic-context", "--raw", "--context")
+    policy = ("policy", "synthetic-context", "--store", "ctx.corl", "--out", "pol", "--context")
+    bad = {"--context 0.1,0.2 (count)": "0.1,0.2", "--context nan": "nan", "--context 1e999": "1e999",
+           "--context 1.5 (outside)": "1.5", "--context ''": "", "--context 0.1,,0.2": "0.1,,0.2"}
+    out = [Case(command, label, (*args, text)) for label, text in bad.items()
+           for command, args in (("run", run), ("ask", ask), ("policy", policy))]
+    for damage in DAMAGE:  # a damaged store that a new run in a context, or the skill, is read from
+        out += [Case("policy", f"ctx store: {damage}", (*policy, "0.2"), damage, target="ctx.corl"),
+                Case("run", f"--context, ctx store: {damage}", (*run[:-2], "ctx.corl", "--context", "-0.5"), damage,
+                     target="ctx.corl"),
+                Case("ask", f"--context, ctx store: {damage}", ("ask", "--store", "ctx.corl", "--task",
+                                                                "synthetic-context", "--raw", "--context", "0.5"),
+                     damage, target="ctx.corl")]
+    return out + [
+        Case("run", "--context, task has none", ("run", "synthetic", "--out", "o", "-q", "--context", "0.1")),
+        Case("ask", "--context, task has none", ("ask", "--store", "new.corl", "--task", "synthetic", "--raw",
+                                                 "--context", "0.1")),
+        Case("policy", "task has no contexts", ("policy", "synthetic", "--store", "ctx.corl", "--context", "0.1")),
+        Case("run", "--context --method CORL+CMA", (*run, "0.1", "--method", "CORL+CMA")),
+        Case("ask", "--context --method CORL+CMA", (*ask, "0.1", "--method", "CORL+CMA")),
+        Case("run", "--context --method CORL+CMA (store)", ("run", "synthetic-context", "--store", "ctx.corl",
+                                                            "--out", "o", "-q", "--context", "0.1", "--method",
+                                                            "CORL+CMA")),
+        Case("run --resume", "--context other", ("run", "synthetic-context", "--store", "ctx.corl", "--resume",
+                                                 "--context", "-0.5", "--out", "o", "--no-video", "-q")),
+        Case("ask", "--context other, run unfinished", ("ask", "--store", "ctx.corl", "--task", "synthetic-context",
+                                                         "--raw", "--context", "-0.5")),
+        Case("ask", "--context, s.corl unfinished", ("ask", "--store", "s.corl", "--task", "synthetic-context",
+                                                     "--raw", "--context", "0.1")),
+        Case("ask", "--context, no --raw", ("ask", "--store", "ctx.corl", "--task", "synthetic-context",
+                                            "--context", "0.5")),
+        Case("policy", "store learned no context", ("policy", "synthetic-context", "--store", "s.corl",
+                                                    "--context", "0.1", "--out", "pol")),
+        Case("policy", "store missing", ("policy", "synthetic-context", "--store", "nothere.corl", "--context",
+                                         "0.1")),
+        Case("policy", "--out FILE", (*policy[:-3], "--out", "afile.txt", "--context", "0.1")),
+        Case("policy", "--rate 0", (*policy, "0.1", "--rate", "0")),
+        Case("policy", "store is a folder", ("policy", "synthetic-context", "--store", "sub", "--context", "0.1")),
+    ]
+
+
 # The subset tests/test_hostile.py runs: one case of each kind, every subcommand at least once.
 FAST = {("status", "store: config not JSON"), ("export", "store: w_shape not JSON"), ("runs", "store: random bytes"),
         ("run --resume", "store: versions a list"), ("run", "task ':'"), ("ask", "task '..:x'"),
@@ -255,7 +303,9 @@ FAST = {("status", "store: config not JSON"), ("export", "store: w_shape not JSO
         ("tell", "--success no --return 0.3"), ("bench synthetic", "--jobs 0"), ("bench door", "--jobs 0"),
         ("sweep", "--jobs 0"), ("sweep", "rollout raises"), ("sweep", "full disk"), ("ask", "--method/--seed other"),
         ("ask", "finished run"), ("tell", "--return 1_000"), ("tell", "factory sys.exit(0)"),
-        ("report", "full disk (figures)"), ("report", "full disk (page)"), ("bench synthetic", "--methods ','")}
+        ("report", "full disk (figures)"), ("report", "full disk (page)"), ("bench synthetic", "--methods ','"),
+        ("run", "--context nan"), ("ask", "--context other, run unfinished"), ("policy", "ctx store: outcome info not JSON"),
+        ("run --resume", "--context other")}
 
 
 def prepare(folder: Path) -> None:
@@ -276,6 +326,9 @@ def prepare(folder: Path) -> None:
     with contextlib.closing(sqlite3.connect(folder / "fin.corl")) as db, db:
         db.execute("DELETE FROM trials WHERE trial_index = 1")  # nothing pending
         db.execute("UPDATE runs SET status = 'finished'")
+    corl("ask", "--store", "ctx.corl", "--task", "synthetic-context", "--context", "0.5", "--out", "trials", "--raw")
+    corl("tell", "--store", "ctx.corl", "--task", "synthetic-context", "--success", "yes", "--return", "0.9")
+    corl("ask", "--store", "ctx.corl", "--task", "synthetic-context", "--out", "trials", "--raw")
 
 
 def _damage(store: Path, damage: str) -> None:
@@ -310,7 +363,7 @@ def run_case(case: Case, template: Path) -> Result:
         folder = Path(tmp) / "case"
         shutil.copytree(template, folder)
         if case.damage is not None:
-            _damage(folder / "s.corl", case.damage)
+            _damage(folder / case.target, case.damage)
         paths, stores = _state(folder)
         res = subprocess.run(_command(case), cwd=folder, env=_env(), capture_output=True, text=True, timeout=300)
         after_paths, after_stores = _state(folder)

@@ -14,6 +14,10 @@ free end down past 0.2 rad flips the switch. The reference trajectory is a cubic
 * R          : ``1 - F / F_REF``, F the mean contact force the fingertips press with (N): the
                spring needs a torque, so the farther from the hinge, the less force - until the
                fingers slide off the end (unknown to corl)
+* c (3,)     : the context (:class:`corl.problem.HasContexts`): where the switch stands, the shift
+               (dx, dy, dz) of its hinge from ``HINGE`` in metres, each within +-5 cm. The whole
+               scene moves with it (post, paddle, the demonstration's waypoints and start, h's
+               targets); theta keeps its meaning. ``c = 0`` is the task above, unchanged.
 
 Run it:  corl run examples.panda_switch:make_task --out results/switch
          corl report --store results/switch/run.corl --out results/switch/report
@@ -23,15 +27,16 @@ or:      python examples/panda_switch.py
 from __future__ import annotations
 
 import math
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 
 from corl.mujoco import (Camera, FrameRecorder, Gripper, Kinematics, PDController, Robot, Target,
                          add_joint_equality, add_servos, caption, contact_force, coordinate_feature, example_robot_dir, fit_demonstration,
-                         load_spec, orientation_feature, position_feature, project_demonstration,
-                         solve_waypoints, stack, touching, track, write_side_by_side)
-from corl.problem import Bounds, Demonstration, Outcome
+                         orientation_feature, position_feature, project_demonstration,
+                         solve_waypoints, stack, touching, track, urdf_to_mjcf, write_side_by_side)
+from corl.mujoco.parse import parse_mjcf
+from corl.problem import Bounds, Demonstration, Outcome, check_theta
 from corl.trajectory import BSpline, TaskSpaceFeature, TrajectoryProblem, acceleration_feature, configuration_feature
 
 ARM = tuple(f"panda_joint{i}" for i in range(1, 8))
@@ -50,6 +55,10 @@ TIP_HALF = 0.009                     # m, half the length of a rubber fingertip 
 R_DEMO = 0.05                        # m from the hinge: a poor spot, near the hinge
 # hand pointing down, fingers opening across the paddle (world y)
 HAND_DOWN = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
+# the context: the hinge's shift (dx, dy, dz) from HINGE, m
+CONTEXT_BOUNDS = Bounds(np.full(3, -0.05), np.full(3, 0.05))
+CONTEXT_LABELS = ("switch shift dx: away from the robot (m)", "switch shift dy: to the robot's left (m)",
+                  "switch shift dz: up (m)")
 
 
 def rot_y(a: float) -> np.ndarray:
@@ -57,9 +66,9 @@ def rot_y(a: float) -> np.ndarray:
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
-def paddle_point(r: float, alpha: float) -> np.ndarray:
-    """The top of the paddle (3,) at distance r from the hinge, paddle pressed down by alpha (rad)."""
-    return HINGE + rot_y(-alpha) @ np.array([-r, 0.0, THICK / 2])
+def paddle_point(r: float, alpha: float, hinge: np.ndarray = HINGE) -> np.ndarray:
+    """The top of the paddle (3,) at distance r from the ``hinge`` (3,), paddle pressed down by alpha (rad)."""
+    return hinge + rot_y(-alpha) @ np.array([-r, 0.0, THICK / 2])
 
 
 def hand_rotation(alpha: float) -> np.ndarray:
@@ -67,13 +76,22 @@ def hand_rotation(alpha: float) -> np.ndarray:
     return rot_y(-alpha) @ HAND_DOWN
 
 
-def build_robot() -> Robot:
-    """The Panda with position servos, fingertip sites, and the sprung paddle in front of it."""
+@lru_cache(maxsize=1)
+def _panda_mjcf() -> str:
+    """The Panda's URDF as MJCF text, its idle joints fused (what ``load_spec`` parses): converted
+    once per process, an immutable string shared by every context's scene."""
+    root = example_robot_dir("panda_description")
+    urdf = root / "urdf" / "panda.urdf"
+    return urdf_to_mjcf(urdf.read_text(), moving=ARM + FINGERS, base_dir=urdf.parent.resolve(),
+                        package_dirs={"package://example-robot-data/robots/panda_description/": root})
+
+
+def build_robot(hinge: np.ndarray = HINGE) -> Robot:
+    """The Panda with position servos, fingertip sites, and the sprung paddle hinged at ``hinge`` (3,)
+    in front of it; a fresh model (and so fresh MjData) for every call."""
     import mujoco
 
-    root = example_robot_dir("panda_description")
-    spec = load_spec(root / "urdf" / "panda.urdf", moving=ARM + FINGERS,
-                     package_dirs={"package://example-robot-data/robots/panda_description/": root})
+    spec = parse_mjcf(_panda_mjcf(), "MJCF made from the URDF")  # = load_spec(panda.urdf), parsed once
     spec.option.timestep = DT
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     for body in spec.bodies:  # only the rubber fingertips touch anything, and only the paddle
@@ -93,9 +111,10 @@ def build_robot() -> Robot:
     add_joint_equality(spec, FINGERS[1], FINGERS[0], name="fingers")  # finger 2 = finger 1
     spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[1.5, 1.5, 0.01],
                             rgba=[0.35, 0.4, 0.45, 1], contype=0, conaffinity=0)
-    spec.worldbody.add_geom(name="post", type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.03, 0.08, HINGE[2] / 2],
-                            pos=[HINGE[0] + 0.03, 0, HINGE[2] / 2], rgba=[0.5, 0.5, 0.5, 1], contype=0, conaffinity=0)
-    paddle = spec.worldbody.add_body(name="paddle", pos=HINGE.tolist())
+    spec.worldbody.add_geom(name="post", type=mujoco.mjtGeom.mjGEOM_BOX, size=[0.03, 0.08, hinge[2] / 2],
+                            pos=[hinge[0] + 0.03, hinge[1], hinge[2] / 2], rgba=[0.5, 0.5, 0.5, 1], contype=0,
+                            conaffinity=0)
+    paddle = spec.worldbody.add_body(name="paddle", pos=np.asarray(hinge, dtype=float).tolist())
     paddle.add_joint(name="paddle_hinge", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, -1, 0], range=[0.0, 0.6],
                      limited=True, stiffness=STIFFNESS, springref=-PRELOAD, damping=0.3, armature=0.001)
     paddle.add_geom(name="paddle", type=mujoco.mjtGeom.mjGEOM_BOX, size=[LENGTH / 2, 0.05, THICK / 2],
@@ -114,9 +133,14 @@ class PandaSwitchTask:
     w_bounds = None
     theta_labels = ("press point: distance from the hinge (m)",)
     joint_names = ARM + ("gripper_width_m",)
+    context_bounds = CONTEXT_BOUNDS
+    context_labels = CONTEXT_LABELS
 
-    def __init__(self) -> None:
-        self.robot = build_robot()
+    def __init__(self, context=None) -> None:
+        c = np.zeros(3) if context is None else check_theta(context, CONTEXT_BOUNDS, task=self.name, what="context")
+        self.context = np.array(c, dtype=float)  # own copy: the caller's array may change
+        self.hinge = HINGE + self.context        # the paddle's hinge in this scene
+        self.robot = build_robot(self.hinge)
         self.kin = Kinematics(self.robot)
         self.tips = self.kin.site("panda_leftfinger_tip", "panda_rightfinger_tip")
         self.hand = self.kin.site("hand")
@@ -134,11 +158,19 @@ class PandaSwitchTask:
         self.demo_report = None
         self._problems: dict = {}
 
+    def with_context(self, c) -> "PandaSwitchTask":
+        """The same task with the switch's hinge at ``HINGE + c`` (c (3,) in m, inside context_bounds)."""
+        return PandaSwitchTask(c)
+
+    def paddle_point(self, r: float, alpha: float) -> np.ndarray:
+        """:func:`paddle_point` on this scene's paddle."""
+        return paddle_point(r, alpha, self.hinge)
+
     # -- the demonstration: IK waypoints -> B-spline -> projection onto h = 0 ---------------------
     @cached_property
     def _demo(self) -> tuple[np.ndarray, np.ndarray]:
-        start = Target(paddle_point(R_DEMO, 0.0) + [-0.12, 0.0, 0.18], HAND_DOWN, gripper=WIDTH)
-        targets = [start] + [Target(paddle_point(R_DEMO, a) + [0, 0, up], hand_rotation(a), gripper=WIDTH)
+        start = Target(self.paddle_point(R_DEMO, 0.0) + [-0.12, 0.0, 0.18], HAND_DOWN, gripper=WIDTH)
+        targets = [start] + [Target(self.paddle_point(R_DEMO, a) + [0, 0, up], hand_rotation(a), gripper=WIDTH)
                              for _, a, up in self.waypoints]
         seed = np.array([0.0, 0.2, 0.0, -2.0, 0.0, 2.2, 0.785, WIDTH])
         knots = solve_waypoints(self.kin, self.tips, targets, seed, start=2, rotation_frame=self.hand)
@@ -181,7 +213,7 @@ class PandaSwitchTask:
                 fk = stack(position_feature(self.kin, self.tips),
                            orientation_feature(self.kin, self.hand, hand_rotation(alpha), weight=0.3),
                            coordinate_feature(8, 7))
-                target = np.concatenate([paddle_point(r, alpha) + [0, 0, up], np.zeros(3), [WIDTH]])
+                target = np.concatenate([self.paddle_point(r, alpha) + [0, 0, up], np.zeros(3), [WIDTH]])
                 eqs.append(TaskSpaceFeature(self.spline, fk, [t], target))
             if len(self._problems) > 64:
                 self._problems.clear()
@@ -199,7 +231,7 @@ class PandaSwitchTask:
 
     def theta_of(self, w):
         q = self.spline.positions(w, [T_TOUCH])[0]
-        return np.array([HINGE[0] - self.kin.position(q, self.tips)[0]])
+        return np.array([self.hinge[0] - self.kin.position(q, self.tips)[0]])
 
     # -- the black box ----------------------------------------------------------------------------
     def reference(self, w, rate: float = 1.0 / DT):
@@ -261,8 +293,8 @@ class PandaSwitchTask:
         """An MP4 of the demonstration (left) beside the learned motion (right), captioned."""
         panels = []
         for name, w in (("demonstration", w_demo), ("learned", w_learned)):
-            rec = FrameRecorder(self.robot.model, Camera(lookat=(0.45, 0.0, 0.35), distance=1.3, azimuth=-90.0,
-                                                         elevation=-10.0))
+            lookat = tuple(float(v) for v in np.array([0.45, 0.0, 0.35]) + self.context)  # follows the switch
+            rec = FrameRecorder(self.robot.model, Camera(lookat=lookat, distance=1.3, azimuth=-90.0, elevation=-10.0))
             try:
                 log = self.run(w, on_step=rec)
             finally:
@@ -272,8 +304,9 @@ class PandaSwitchTask:
         return str(write_side_by_side(path, *panels))
 
 
-def make_task() -> PandaSwitchTask:
-    return PandaSwitchTask()
+def make_task(context=None) -> PandaSwitchTask:
+    """The switch task; ``context`` (3,): the switch's shift (dx, dy, dz) in m, default none."""
+    return PandaSwitchTask(context)
 
 
 if __name__ == "__main__":

@@ -9,23 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from panda import ROOT, needs_panda
 
-pytest.importorskip("mujoco")
-
-
-def _has_panda() -> bool:
-    from corl.errors import InputError
-    from corl.mujoco import example_robot_dir
-
-    try:
-        return (example_robot_dir("panda_description") / "urdf" / "panda.urdf").is_file()
-    except InputError:
-        return False
-
-
-pytestmark = pytest.mark.skipif(not _has_panda(), reason="the Panda ships in example-robot-data 6.0.0")
+pytestmark = needs_panda
 
 
 def _corl(*args, cwd):

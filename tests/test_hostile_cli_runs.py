@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from cli_refusal import refuse
+from cli_refusal import copy_of, refuse, state
 from typer.testing import CliRunner
 
 from corl.cli import app
@@ -77,18 +77,8 @@ def template(tmp_path_factory):
 
 @pytest.fixture
 def workdir(template, tmp_path, monkeypatch):
-    folder = tmp_path / "case"
-    shutil.copytree(template, folder)
-    monkeypatch.chdir(folder)
-    monkeypatch.syspath_prepend(str(folder))
-    yield folder
+    yield copy_of(template, tmp_path, monkeypatch)
     sys.modules.pop("usertask", None)
-
-
-def state(folder: Path) -> dict[str, tuple[bytes, int]]:
-    """Every file under ``folder``: its bytes and modification time (ns)."""
-    return {str(p.relative_to(folder)): (p.read_bytes(), p.stat().st_mtime_ns)
-            for p in sorted(folder.rglob("*")) if p.is_file() and "__pycache__" not in p.parts}
 
 
 def refused(args: list[str], folder: Path, message: str) -> str:

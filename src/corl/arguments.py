@@ -17,7 +17,7 @@ from typing import Any, Callable
 
 from corl.errors import CorlError, InputError
 
-__all__ = ["check", "plain_number", "NewPaths", "NEW_PATHS", "latest_run", "MAX_STARTS"]
+__all__ = ["check", "plain_number", "plain_numbers", "NewPaths", "NEW_PATHS", "latest_run", "MAX_STARTS"]
 
 MAX_STARTS = 100_000  # `corl bench synthetic --starts`: 8 methods x 100 take ~2 min on 2 cores, 10^5 ~1.5 days
 
@@ -116,6 +116,16 @@ def plain_number(flag: str, text: str) -> float:
     if not math.isfinite(value):  # e.g. 1e999
         raise InputError(f"{flag} must be finite, got {text!r}")
     return value
+
+
+def plain_numbers(flag: str, text: str) -> list[float]:
+    """Comma-separated :func:`plain_number` s (``--context 0.02,-0.01,0,0.1``), or :class:`InputError`:
+    an empty text or an empty item (``0.1,,0.2``) too; the count is the caller's to check."""
+    items = text.split(",")
+    if not text.strip() or any(not item.strip() for item in items):
+        raise InputError(f"{flag} must be comma-separated plain finite numbers such as 0.02,-0.01, got {text!r}")
+    return [plain_number(flag if len(items) == 1 else f"{flag} (number {i + 1})", item)
+            for i, item in enumerate(items)]
 
 
 class NewPaths:

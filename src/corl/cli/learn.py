@@ -1,5 +1,9 @@
 """``corl run``, ``corl ask`` and ``corl tell``: a learning run, in the simulator or trial by trial on a
-robot, every trial committed to the run store (:mod:`corl.session`)."""
+robot, every trial committed to the run store (:mod:`corl.session`).
+
+With ``--context C`` (a task with contexts), ``corl run`` and ``corl ask`` start a new run in scene C
+that learns from the store's earlier runs in other contexts (:mod:`corl.contexts`); one store holds
+them all, and ``corl policy`` (:mod:`corl.cli.skill`) deploys what they learned."""
 
 from __future__ import annotations
 
@@ -11,6 +15,7 @@ import typer
 
 from corl.arguments import NEW_PATHS, latest_run, plain_number
 from corl.cli.common import JSON_OUT, LOG, QUIET, check_args, fail, open_store, print_json, progress_tracker, write_json
+from corl.cli.skill import context_text, parse_context, recorded_context, scene_of
 
 __all__ = ["run", "ask", "tell"]
 
@@ -23,6 +28,9 @@ def run(
     out: Path = typer.Option(Path("results/run"), help="output folder for summary.json"),
     store: Optional[Path] = typer.Option(None, help="run store (default OUT/run.corl)"),
     resume: bool = typer.Option(False, "--resume", help="continue the store's latest run exactly (or start one)"),
+    context: Optional[str] = typer.Option(None, help="learn in this scene (a task with contexts): comma-separated "
+                                                     "numbers, e.g. 0.02,-0.01,0,0.1; a new run in the store that "
+                                                     "starts from what its runs in other contexts learned"),
     quiet: bool = QUIET, json_out: bool = JSON_OUT, log: bool = LOG,
     video: bool = typer.Option(True, "--video/--no-video", help="render demonstration vs learned motion"),
     rollout_every_step: Optional[bool] = typer.Option(
@@ -43,13 +51,15 @@ def run(
     NEW_PATHS.track(out, store_path)
     t0 = time.perf_counter()
     try:  # every check, the task and the learner (replayed) before the store is opened for writing
-        the_task, session = _run_to_continue(task, store_path, resume=resume, method=method, seed=seed,
-                                             rollout_every_step=rollout_every_step, quiet=quiet)
+        the_task, session, seen = _run_to_continue(task, store_path, resume=resume, method=method, seed=seed,
+                                                   rollout_every_step=rollout_every_step, quiet=quiet, context=context)
         db = open_store(store_path)
     except CorlError as exc:
         fail(str(exc))
     with db:
         try:
+            if session.run_id is None and seen is not None:  # learned from the store's runs: still the same?
+                _refuse_new_runs(db, store_path, seen[0])
             info = db.run(session.attach(db).run_id)
         except CorlError as exc:
             fail(str(exc))
@@ -79,7 +89,8 @@ def run(
                 tracker.update("trials", done=len(session.history), total=len(session.history), note="finished")
             except CorlError as exc:
                 fail(f"{exc} (the store {store_path} keeps every trial so far; resume with --resume)")
-            payload = run_summary(the_task, method, seed, session.learner, time.perf_counter() - t0)
+            payload = run_summary(the_task, method, seed, session.learner, time.perf_counter() - t0,
+                                  context=info.config.get("context"), contextual=bool(info.config.get("contextual")))
             payload["store"] = str(store_path)
             payload["run_id"] = session.run_id
             payload.update(task_extras(the_task, session.learner))
@@ -102,6 +113,9 @@ def ask(
     out: Optional[Path] = typer.Option(None, help="folder for trial_<i>.csv/.npz (default: beside the store)"),
     raw: bool = typer.Option(False, "--raw", help="for a task without reference(): write the raw parameters w "
                                                  "(trial_<i>_raw_parameters.csv), NOT a joint trajectory"),
+    context: Optional[str] = typer.Option(None, help="a new run in this scene (a task with contexts), learning from "
+                                                     "the store's runs in other contexts: comma-separated numbers, "
+                                                     "e.g. 0.02,-0.01,0,0.1; the same context continues its run"),
 ) -> None:
     """Write the next trial's trajectory (CSV and NPZ) and print its theta (real-robot loop)."""
     from corl.errors import CorlError
@@ -114,21 +128,22 @@ def ask(
         fail(f"unknown method '{method}'; choose from {', '.join(METHODS)}")
     NEW_PATHS.track(store, *([out] if out is not None else []))
     try:  # the trial is computed and checked before the store is opened for writing
-        the_task, session = _run_to_ask(task, store, method=method, seed=seed, raw=raw, rate=rate)
+        the_task, session, seen = _run_to_ask(task, store, method=method, seed=seed, raw=raw, rate=rate,
+                                              context=context)
         proposal = session.learner.ask()
         trajectory = None if raw else trajectory_of(the_task, proposal.w, rate)
         with open_store(store) as db:
-            if session.run_id is None and db.latest_run() is not None:
-                fail(f"another process started a run in {store} meanwhile; nothing was written: run the command "
-                     "again")
+            if session.run_id is None:
+                _refuse_new_runs(db, store, seen)
             session.attach(db).hand_out(proposal)
     except CorlError as exc:
         fail(str(exc))
     _write_trial(out or store.parent, the_task, proposal, trajectory)
 
 
-def _run_to_ask(task: str, store: Path, *, method, seed, raw: bool, rate: float):
-    """``(task, StoredRun)`` of ``corl ask``: the store's latest run replayed read-only, or a new one."""
+def _run_to_ask(task: str, store: Path, *, method, seed, raw: bool, rate: float, context):
+    """``(task in the run's scene, StoredRun, id of the store's latest run)`` of ``corl ask``: the store's
+    latest run replayed read-only, or a new one (with ``--context``: in that scene, learning from the store)."""
     import numpy as np
 
     from corl.session import StoredRun, trajectory_of
@@ -136,19 +151,70 @@ def _run_to_ask(task: str, store: Path, *, method, seed, raw: bool, rate: float)
     from corl.tasks.registry import load_task
 
     info = latest_run(store)  # read-only
-    if info is not None:
+    unfinished = info is not None and info.status is not RunStatus.FINISHED
+    c = None
+    if context is not None:  # a new run in that scene, or the unfinished latest run when it is in that scene
+        the_task = load_task(task, seed=int(info.seed or 0) if unfinished else seed or 0)
+        c = parse_context(the_task, context)
+        if unfinished:
+            _refuse_other_scene(info, store, c)
+    if info is not None and (context is None or unfinished):
         _refuse_other_flags(info, ("--method", method, info.method), ("--seed", seed, info.seed))
-        if info.status is RunStatus.FINISHED:
+        if not unfinished:
             _refuse_finished(info, store)
-    the_task = load_task(task, seed=int(info.seed or 0) if info is not None else seed or 0)
+    if context is None:
+        the_task = load_task(task, seed=int(info.seed or 0) if info is not None else seed or 0)
     if getattr(the_task, "reference", None) is None and not raw:  # corl.problem.HasReference
         trajectory_of(the_task, np.zeros(1), rate)  # raises the message, before a trial is handed out
-    if info is None:
-        return the_task, StoredRun.new(the_task, task_spec=task, method=method or "CORL+PIBU", seed=seed or 0)
+    if info is None or (c is not None and not unfinished):
+        if c is None:
+            return the_task, StoredRun.new(the_task, task_spec=task, method=method or "CORL+PIBU", seed=seed or 0), None
+        return scene_of(the_task, c), _new_in_context(the_task, task, store, method=method, seed=seed, context=c,
+                                                      overrides=None), info.id if info is not None else None
     session = _reopened(the_task, store, info)
     if session.done:
         _refuse_finished(info, store)
-    return the_task, session
+    return _run_scene(the_task, info), session, info.id
+
+
+def _run_scene(the_task, info):
+    """The task in the scene of stored run ``info``: its context when it learned in one, else the task."""
+    return scene_of(the_task, recorded_context(info)) if info.config.get("contextual") else the_task
+
+
+def _new_in_context(the_task, task_spec: str, store: Path, *, method, seed, context, overrides):
+    """A new run in scene ``context`` that learns from the store's runs (the store opened read-only)."""
+    from corl.session import StoredRun
+
+    new = dict(task_spec=task_spec, method=method or "CORL", seed=seed or 0, corl_overrides=overrides,
+               context=context)
+    if latest_run(store) is None:  # no store, or no run in it yet: nothing learned, the demonstration
+        return StoredRun.new(the_task, learned_from=None, **new)
+    with open_store(store, readonly=True) as db:
+        return StoredRun.new(the_task, learned_from=db, **new)
+
+
+def _refuse_new_runs(db, store: Path, seen) -> None:
+    """Exit 2 when another process added a run since ``seen`` (the latest run id read, or None) was read:
+    what a new run learned from, or the run it would have continued, is no longer the store's latest."""
+    latest = db.latest_run()
+    if (latest.id if latest is not None else None) != seen:
+        fail(f"another process started a run in {store} meanwhile; nothing was written: run the command again")
+
+
+def _refuse_other_scene(info, store: Path, c) -> None:
+    """``corl ask --context C`` while the store's latest run is unfinished: only in scene C does it go on."""
+    import numpy as np
+
+    rc = recorded_context(info)
+    if rc is not None and rc.shape == c.shape and np.array_equal(rc, c):
+        return
+    where = "no context" if rc is None else f"context {context_text(rc)}"
+    pending = info.n_trials > info.n_told
+    state, first = (", a trial is pending", "corl tell its pending trial, then ") if pending else ("", "")
+    fail(f"run {info.id} in {store} (task '{info.task}', {where}) is not finished{state}, so no run in context "
+         f"{context_text(c)} can start there: finish it first ({first}corl ask without --context until it is "
+         "done), or use another --store")
 
 
 def _write_trial(folder: Path, the_task, proposal, trajectory) -> None:
@@ -220,9 +286,11 @@ def _run_to_tell(task: str, store: Path, outcome):
     return session
 
 
-def _run_to_continue(task: str, store_path: Path, *, resume: bool, method, seed, rollout_every_step, quiet: bool):
-    """``(task, StoredRun)`` of ``corl run``: the store's latest run replayed from a read-only open
-    (``--resume``), or a new run in no store yet; nothing is written (see StoredRun.attach)."""
+def _run_to_continue(task: str, store_path: Path, *, resume: bool, method, seed, rollout_every_step, quiet: bool,
+                     context=None):
+    """``(task in the run's scene, StoredRun, seen)`` of ``corl run``: the store's latest run replayed from a
+    read-only open (``--resume``), or a new run in no store yet; nothing is written (see StoredRun.attach).
+    ``seen``: for a new run in a context, ``(id of the latest run it learned up to,)``; else None."""
     from corl.methods import DEFAULT_METHOD
     from corl.session import StoredRun
     from corl.tasks.registry import BUILTIN_TASKS, load_task
@@ -231,16 +299,38 @@ def _run_to_continue(task: str, store_path: Path, *, resume: bool, method, seed,
     if resume and info is None and not quiet:
         typer.echo(f"--resume: {store_path} holds no run yet (killed before its first commit?); starting one", err=True)
     if info is None:
-        method = method or ("CORL+PIBU" if task in BUILTIN_TASKS else DEFAULT_METHOD)
         seed = 0 if seed is None else seed
         the_task = load_task(task, seed=seed)
         overrides = None if rollout_every_step is None else {"rollout_every_step": rollout_every_step}
-        return the_task, StoredRun.new(the_task, task_spec=task, method=method, seed=seed, corl_overrides=overrides)
+        if context is not None:
+            c = parse_context(the_task, context)
+            latest = latest_run(store_path)
+            return scene_of(the_task, c), _new_in_context(the_task, task, store_path, method=method, seed=seed,
+                                                          context=c, overrides=overrides), (latest and latest.id,)
+        method = method or ("CORL+PIBU" if task in BUILTIN_TASKS else DEFAULT_METHOD)
+        return the_task, StoredRun.new(the_task, task_spec=task, method=method, seed=seed,
+                                       corl_overrides=overrides), None
     stored_every = info.config.get("corl_overrides", {}).get("rollout_every_step")
     _refuse_other_flags(info, ("--method", method, info.method), ("--seed", seed, info.seed),
                         ("--[no-]rollout-every-step", rollout_every_step, stored_every))
     the_task = load_task(task, seed=int(info.seed or 0))
-    return the_task, _reopened(the_task, store_path, info)
+    if context is not None:
+        _refuse_other_context(info, store_path, parse_context(the_task, context))
+    return _run_scene(the_task, info), _reopened(the_task, store_path, info), None
+
+
+def _refuse_other_context(info, store: Path, c) -> None:
+    """``corl run --context C --resume``: the latest run goes on only when it learned in scene C."""
+    import numpy as np
+
+    rc = recorded_context(info)
+    if rc is not None and rc.shape == c.shape and np.array_equal(rc, c):
+        return
+    where, same = (("no context", "drop --context") if rc is None
+                   else (f"context {context_text(rc)}", f"give --context {context_text(rc)}"))
+    fail(f"--resume continues run {info.id} in {store}, which learned in {where}, not in --context "
+         f"{context_text(c)}: drop --resume to start a new run in context {context_text(c)}, or {same} to "
+         f"continue run {info.id}")
 
 
 def _reopened(the_task, store_path: Path, info):

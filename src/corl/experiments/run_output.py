@@ -18,13 +18,17 @@ from corl.mujoco.video import RENDERING_HINT
 __all__ = ["run_summary", "task_extras", "run_text", "write_run_artifacts"]
 
 
-def run_summary(task, method: str, seed: int, learner, seconds: float) -> dict:
-    """The fields of ``summary.json`` every task has: best theta (m,), best return, J, trials, failures."""
+def run_summary(task, method: str, seed: int, learner, seconds: float, *, context=None,
+                contextual: bool = False) -> dict:
+    """The fields of ``summary.json`` every task has: best theta (m,), best return, J, trials, failures;
+    for a task with contexts also ``context`` (k,), the scene the run learned in, and for a run in a
+    context (``corl run --context``) ``start``: what its first trial was (the skill's policy, the
+    nearest learned context's theta*, the scene's demonstration; the demonstration in the first context)."""
     from corl.learner import cost_of
     from corl.versions import library_versions
 
     history, best = learner.history, learner.best
-    return {
+    summary = {
         "task": task.name, "method": method, "seed": seed,
         "success": best is not None,
         "best_theta": None if best is None else [float(v) for v in best.theta],
@@ -39,6 +43,11 @@ def run_summary(task, method: str, seed: int, learner, seconds: float) -> dict:
         "seconds": seconds,
         "versions": library_versions(),
     }
+    if context is not None:
+        summary["context"] = [float(v) for v in np.asarray(context, dtype=float).reshape(-1)]
+    if contextual:
+        summary["start"] = getattr(learner, "start_kind", None) or "demonstration"  # corl.contexts.ContextualCORL
+    return summary
 
 
 def task_extras(task, learner) -> dict:
@@ -70,12 +79,15 @@ def task_extras(task, learner) -> dict:
 def run_text(summary: dict, path: str | Path) -> str:
     """A few lines for a person: what ran, the best trial, the files written (``path``: summary.json)."""
     s = summary
-    lines = [f"run {s.get('run_id', '?')}: {s['method']} on {s['task']}, seed {s['seed']}: {s['trials']} trials, "
-             f"{s['failures']} failures, {s['seconds']:.1f} s"]
+    scene = "" if s.get("context") is None else f" in context {[round(v, 4) for v in s['context']]}"
+    scene += f" (started from the {s['start']})" if s.get("start") else ""
+    lines = [f"run {s.get('run_id', '?')}: {s['method']} on {s['task']}{scene}, seed {s['seed']}: {s['trials']} "
+             f"trials, {s['failures']} failures, {s['seconds']:.1f} s"]
     if s["best_return"] is None:
         lines.append("no successful trial")
     else:
-        J0 = "" if s["J_initial"] is None else f" (demonstration {s['J_initial']:.4g})"
+        start = "demonstration" if s.get("start") in (None, "demonstration") else f"start: {s['start']},"
+        J0 = "" if s["J_initial"] is None else f" ({start} {s['J_initial']:.4g})"
         lines.append(f"best return {s['best_return']:+.4f} at theta {[round(v, 4) for v in s['best_theta']]}, "
                      f"J {s['J_final']:.4g}{J0}")
     files = s.get("files", {})

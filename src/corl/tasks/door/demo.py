@@ -29,9 +29,10 @@ from corl.tasks.door.kinematics import Kinematics
 from corl.tasks.door.scene import DoorScene, load_scene
 
 __all__ = ["DoorDemonstration", "scripted_demonstration", "shifted_reference", "grasp_rotation",
-           "DEMO_GRASP_R", "DEMO_WIDTH", "CONTROL_DT"]
+           "demonstration_waypoints", "DEMO_GRASP_R", "DEMO_WIDTH", "DEMO_DURATION", "CONTROL_DT"]
 
 CONTROL_DT = 0.002
+DEMO_DURATION = 5.0      # s
 DEMO_GRASP_R = 0.035     # m from the pivot: close to it, so pressing needs much force
 DEMO_WIDTH = 0.016       # m: 6 mm tighter than the 22 mm bar, a firm squeeze
 OPEN_WIDTH = 0.04        # m, the approach width (the door-side tip clears the door)
@@ -60,9 +61,10 @@ def _rot_x(a: float) -> np.ndarray:
 _GRASP_R0 = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, -1.0], [-1.0, 0.0, 0.0]])
 
 
-def grasp_rotation(phi: float, alpha: float) -> np.ndarray:
-    """Palm orientation (3, 3) that holds the bar with the door at ``phi`` and handle at ``alpha``."""
-    return _rot_z(phi) @ _rot_x(alpha) @ _GRASP_R0
+def grasp_rotation(phi: float, alpha: float, yaw: float = 0.0) -> np.ndarray:
+    """Palm orientation (3, 3) that holds the bar with the door at ``phi`` and handle at ``alpha``,
+    the door turned by ``yaw`` about the vertical (``DoorGeometry.yaw``; both turn about z)."""
+    return _rot_z(phi + yaw) @ _rot_x(alpha) @ _GRASP_R0
 
 
 @dataclass(frozen=True)
@@ -92,6 +94,8 @@ class DoorDemonstration:
     t_contact : float, s
     theta : (2,) the contact parameters this reference realises
     duration : float, s
+    start_fixed : the first knot is a given start configuration (the robot's rest posture), not
+        the IK solution of the first waypoint
     """
 
     waypoints: tuple
@@ -99,7 +103,8 @@ class DoorDemonstration:
     knots: np.ndarray
     t_contact: float
     theta: np.ndarray
-    duration: float = 5.0
+    duration: float = DEMO_DURATION
+    start_fixed: bool = False
 
     def reference(self, dt: float = CONTROL_DT) -> np.ndarray:
         """Dense reference (N, 8) at ``dt``, piecewise linear between the knots, N = duration/dt + 1."""
@@ -107,14 +112,21 @@ class DoorDemonstration:
 
 
 def _target(scene: DoorScene, wp: Waypoint) -> Target:
-    """Contact point on the bar (backed off along the approach, offset), palm square to it, width."""
-    rot = grasp_rotation(wp.phi, wp.alpha)
+    """Contact point on the bar (backed off along the approach, offset in the door's frame), palm
+    square to it, width."""
+    rot = grasp_rotation(wp.phi, wp.alpha, scene.geometry.yaw)
     target = scene.handle_point(wp.r, wp.phi, wp.alpha) - wp.backoff * rot[:, 0]
-    return Target(target + np.asarray(wp.offset), rot, gripper=wp.width)
+    return Target(target + scene.door_vector(wp.offset), rot, gripper=wp.width)
 
 
 def _solve(kin: Kinematics, wp: Waypoint, q_seed: np.ndarray) -> np.ndarray:
     return solve_ik(kin, kin.pads, _target(kin.scene, wp), q_seed, rotation_frame=kin.hand)
+
+
+def demonstration_waypoints(r: float = DEMO_GRASP_R, width: float = DEMO_WIDTH) -> list[Waypoint]:
+    """The demonstration's plan relative to the door (the same in every scene): grasp at ``r`` from
+    the pivot, close to ``width``, press, pull, hold; the first waypoint is the start pose."""
+    return _waypoints(r, width)
 
 
 def _waypoints(r: float, width: float) -> list[Waypoint]:
@@ -135,18 +147,25 @@ def _waypoints(r: float, width: float) -> list[Waypoint]:
 
 
 def scripted_demonstration(scene: DoorScene | None = None, *, r: float = DEMO_GRASP_R,
-                           width: float = DEMO_WIDTH) -> DoorDemonstration:
-    """The scripted demonstration: IK waypoints joined piecewise-linearly (successful, jerky)."""
+                           width: float = DEMO_WIDTH, start=None) -> DoorDemonstration:
+    """The scripted demonstration: IK waypoints joined piecewise-linearly (successful, jerky).
+
+    ``start`` (8,): the configuration to start from (e.g. the rest posture of the unmoved scene's
+    demonstration, for a moved door); None: the IK solution of the first waypoint.
+    """
     kin = Kinematics(scene or load_scene())
     wps = _waypoints(r, width)
     grasp = next(i for i, wp in enumerate(wps) if wp.contact)
+    first = 0 if start is None else 1
     # Walk outwards from the grasp so neighbouring knots stay on one IK branch.
-    knots = solve_waypoints(kin, kin.pads, [_target(kin.scene, wp) for wp in wps], _SEED, start=grasp,
-                            rotation_frame=kin.hand)
+    knots = solve_waypoints(kin, kin.pads, [_target(kin.scene, wp) for wp in wps[first:]], _SEED,
+                            start=grasp - first, rotation_frame=kin.hand)
+    if start is not None:
+        knots = np.vstack([kin.robot.check_q(start), knots])
     closed = next(wp for wp in wps if wp.contact and wp.width == width)
     return DoorDemonstration(waypoints=tuple(wps), times=np.array([wp.time for wp in wps]),
                              knots=knots, t_contact=closed.time,
-                             theta=np.array([0.0, width]))
+                             theta=np.array([r - DEMO_GRASP_R, width]), start_fixed=start is not None)
 
 
 def shifted_reference(demo: DoorDemonstration, theta, scene: DoorScene | None = None,
@@ -170,6 +189,9 @@ def shifted_reference(demo: DoorDemonstration, theta, scene: DoorScene | None = 
     new_wps = []
     for k, wp in enumerate(demo.waypoints):
         width = theta[1] if (wp.width == demo_width and wp.contact) else wp.width
+        if k == 0 and demo.start_fixed:  # the rest posture does not move with the grasp
+            new_wps.append(wp)
+            continue
         q = knots[k]
         for frac in np.linspace(0.0, 1.0, steps + 1)[1:]:
             step_wp = replace(wp, r=base_r + frac * theta[0], width=width)
@@ -179,4 +201,4 @@ def shifted_reference(demo: DoorDemonstration, theta, scene: DoorScene | None = 
     return DoorDemonstration(waypoints=tuple(new_wps), times=demo.times.copy(), knots=knots,
                              t_contact=demo.t_contact,
                              theta=np.array([demo.theta[0] + theta[0], theta[1]]),
-                             duration=demo.duration)
+                             duration=demo.duration, start_fixed=demo.start_fixed)

@@ -14,7 +14,8 @@ The robot is the PR2 of ``example-robot-data`` (URDF and meshes ship in the whee
 downloaded). Its root is ``base_footprint`` without a floating joint, so the base is fixed. Every
 joint but the right arm's seven and the right gripper's finger joints is turned to ``fixed`` in the
 URDF text before loading. The door hangs on a vertical hinge in front of the right shoulder, opens
-towards the robot, and is held shut by a latch: a joint equality on the hinge that the simulator
+towards the robot (``DoorGeometry`` places it; its ``yaw`` turns it about the vertical through the
+handle pivot), and is held shut by a latch: a joint equality on the hinge that the simulator
 switches off through ``data.eq_active`` once the sprung lever handle is pressed past
 ``latch_angle``.
 
@@ -112,6 +113,10 @@ class DoorGeometry:
     """Where the door and its handle are, and how they resist (SI units, world = base_footprint).
 
     The lever points from its pivot towards the hinge (-y); ``handle_height`` is the pivot's height.
+    ``yaw`` turns the whole door (slab, hinge, handle) about the vertical axis through the handle
+    pivot (rad, counter-clockwise seen from above: positive moves the hinge side away from the
+    robot); the pivot stays where ``door_distance``, ``pivot_y`` and ``handle_height`` put it, so
+    ``door_distance`` is the door face's distance at the pivot and yaw only turns the door.
     """
 
     door_distance: float = 0.66      # front face of the door in front of the right shoulder (x)
@@ -130,8 +135,11 @@ class DoorGeometry:
     handle_range: float = 0.8        # rad, pressed-down stop
     latch_angle: float = 0.4         # rad: the latch releases past this handle angle
     pad_friction: float = 1.2
+    yaw: float = 0.0                 # rad, about the vertical through the handle pivot
 
     def __post_init__(self):
+        if not (math.isfinite(self.yaw) and abs(self.yaw) < 0.5 * math.pi):
+            raise InputError(f"DoorGeometry.yaw must be a finite angle within +-pi/2 rad, got {self.yaw}")
         for name in ("door_distance", "lever_length", "lever_radius", "standoff", "door_width",
                      "door_mass", "latch_angle", "handle_range"):
             if getattr(self, name) <= 0:
@@ -201,18 +209,54 @@ class DoorScene:
         """Mass (kg) below the force-torque sensor: the sensor reads its weight at rest."""
         return float(self.model.body_subtreemass[self.wrist_body])
 
+    @property
+    def door_rotation(self) -> np.ndarray:
+        """(3, 3) orientation of the closed door's frame in the world: the yaw about the vertical."""
+        return _rot_z(self.geometry.yaw)
+
+    def door_vector(self, v) -> np.ndarray:
+        """A vector (3,) given in the closed door's frame (-x: out of the face towards the robot,
+        y: along the face, z: up) in world coordinates (the identity at yaw 0)."""
+        v = np.asarray(v, dtype=float)
+        return self.door_rotation @ v if self.geometry.yaw != 0.0 else v
+
     def handle_point(self, r: float, phi: float = 0.0, alpha: float = 0.0) -> np.ndarray:
         """World position (3,) of the bar axis at distance ``r`` from the pivot, door at ``phi``,
         handle at ``alpha``."""
         g = self.geometry
         local = np.array([-g.standoff, -r * math.cos(alpha), -r * math.sin(alpha)])
-        return self.door_point(self.pivot_world + local, phi)
+        return self.door_point(self.pivot_world + self.door_vector(local), phi)
+
+    def along_lever(self, p) -> float:
+        """How far (m) the point ``p`` (3,) lies along the closed door's lever at rest, from the
+        pivot towards its tip (the bar axis at ``r`` is ``handle_point(r)``: along = r)."""
+        d = self.pivot_world - np.asarray(p, dtype=float)
+        if self.geometry.yaw == 0.0:
+            return float(d[1])
+        c, s = math.cos(self.geometry.yaw), math.sin(self.geometry.yaw)
+        return float(c * d[1] - s * d[0])
 
     def door_point(self, p_closed: np.ndarray, phi: float) -> np.ndarray:
         """Where a point fixed to the door at ``p_closed`` (door shut) goes when the door is at ``phi``."""
         c, s = math.cos(phi), math.sin(phi)
         d = np.asarray(p_closed, dtype=float) - self.hinge_world
         return self.hinge_world + np.array([c * d[0] - s * d[1], s * d[0] + c * d[1], d[2]])
+
+
+def _rot_z(a: float) -> np.ndarray:
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _hinge_world(g: DoorGeometry) -> np.ndarray:
+    """A point (3,) on the hinge axis (floor height): beside the pivot along the face, turned by the
+    yaw about the pivot's vertical."""
+    x_face = -0.05 + g.door_distance           # right shoulder pan axis is at x = -0.05
+    hinge_y = g.pivot_y + g.edge_margin - g.door_width
+    if g.yaw == 0.0:
+        return np.array([x_face, hinge_y, 0.0])
+    d = _rot_z(g.yaw) @ np.array([0.0, hinge_y - g.pivot_y, 0.0])
+    return np.array([x_face + d[0], g.pivot_y + d[1], 0.0])
 
 
 def pr2_description_dir() -> Path:
@@ -225,6 +269,7 @@ def pr2_description_dir() -> Path:
     return root
 
 
+@functools.lru_cache(maxsize=1)
 def _pr2_mjcf_text() -> str:
     """The PR2 with all joints but the right arm's and gripper's locked, as MJCF (fixed links fused:
     the palm and everything rigid on it become part of ``r_wrist_roll_link``)."""
@@ -295,7 +340,10 @@ def _build_spec(geometry: DoorGeometry):
     # --- the door: hinge on the robot's right, opening towards the robot
     x_face = -0.05 + g.door_distance           # right shoulder pan axis is at x = -0.05
     hinge_y = g.pivot_y + g.edge_margin - g.door_width
-    door = spec.worldbody.add_body(name="door", pos=[x_face, hinge_y, 0.0])
+    hinge = _hinge_world(g)
+    door = spec.worldbody.add_body(name="door", pos=hinge.tolist())
+    if g.yaw != 0.0:  # the door's frame turned about the vertical (its hinge axis stays vertical)
+        door.quat = [math.cos(0.5 * g.yaw), 0.0, 0.0, math.sin(0.5 * g.yaw)]
     door.add_joint(name="door_hinge", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1],
                    range=[0.0, 1.6], limited=True, damping=g.hinge_damping,
                    frictionloss=g.hinge_friction)
@@ -381,7 +429,7 @@ def load_scene(geometry: DoorGeometry | None = None) -> DoorScene:
         force_adr=int(model.sensor_adr[force_sensor]),
         torque_adr=int(model.sensor_adr[torque_sensor]),
         pivot_world=np.array([x_face, geometry.pivot_y, geometry.handle_height]),
-        hinge_world=np.array([x_face, hinge_y, 0.0]),
+        hinge_world=_hinge_world(geometry),
         tip_geoms=(gid("r_gripper_l_finger_tip_link_pad"), gid("r_gripper_r_finger_tip_link_pad")),
         palm_geoms=(gid("r_gripper_palm"),),
         handle_geoms=(gid("handle_bar"), gid("handle_neck")),

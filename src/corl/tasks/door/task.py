@@ -16,6 +16,12 @@ J       : squared joint accelerations of the reference (Eq. 9), sum over K time 
 R       : ``1 - F / 15 N``, F the mean interaction force at the wrist while the hand works the
           handle (less force is better; order 1)
 S       : the door opened past 0.3 rad and the hand kept hold of the handle
+c       : (4,) the context (:class:`corl.problem.HasContexts`, :mod:`corl.tasks.door.contexts`),
+          measured before a trial: (dz handle height, m; dx door face distance from the robot, m;
+          dy door position along the wall, m; yaw of the door about the vertical through the handle
+          pivot, rad); c = 0 is the scene of the paper. theta, the contact plan and h are relative
+          to the door, so they mean the same in every context; the robot starts from the same rest
+          posture in every context
 """
 
 from __future__ import annotations
@@ -30,8 +36,11 @@ import numpy as np
 
 from corl.errors import InputError
 from corl.problem import Bounds, Demonstration, Outcome
+from corl.tasks.door.contexts import (CONTEXT_BOUNDS, CONTEXT_LABELS, check_context, context_demonstration,
+                                      geometry_of_context, rest_start)
 from corl.tasks.door.scene import ARM_JOINTS
-from corl.tasks.door.demo import CONTROL_DT, DEMO_GRASP_R, DEMO_WIDTH, grasp_rotation, scripted_demonstration
+from corl.tasks.door.demo import (CONTROL_DT, DEMO_DURATION, DEMO_WIDTH, demonstration_waypoints, grasp_rotation,
+                                  scripted_demonstration)
 from corl.trajectory.bspline import BSpline
 from corl.trajectory.features import TaskSpaceFeature, TrajectoryProblem, acceleration_feature, configuration_feature
 
@@ -68,6 +77,10 @@ class DoorTask:
         differ. The error is a function of ``(seed, w)``, so a trial repeated or replayed from a
         run store reads the same value.
     seed : seeds the measurement error.
+    context : (4,) c = (dz, dx, dy, yaw) of the door (:mod:`corl.tasks.door.contexts`); None is 0,
+        the paper's scene. A moved door's demonstration is scripted in its scene on first use
+        (:func:`corl.tasks.door.contexts.context_demonstration`); h needs none: the contact plan
+        relative to the door and the start configuration are those of the unmoved scene.
     """
 
     name = "door"
@@ -75,20 +88,26 @@ class DoorTask:
     w_bounds = None
     theta_labels = ("grasp shift along the handle (m)", "finger width (m)")
     joint_names = ARM_JOINTS + ("gripper_width_m",)
+    context_bounds = CONTEXT_BOUNDS
+    context_labels = CONTEXT_LABELS
 
     def __init__(self, *, num_control_points: int = 150, num_steps: int = 250, force_noise: float = 0.0,
-                 seed: int = 0) -> None:
+                 seed: int = 0, context=None) -> None:
         from corl.tasks.door.kinematics import Kinematics
         from corl.tasks.door.scene import load_scene
 
         if not (math.isfinite(force_noise) and force_noise >= 0.0):
             raise InputError(f"force_noise must be a finite standard deviation >= 0 (N), got {force_noise!r}")
         self.force_noise, self.seed = float(force_noise), int(seed)
-        self.scene = load_scene()
+        self._context = np.zeros(CONTEXT_BOUNDS.dim) if context is None else check_context(context).copy()
+        self._moved = bool(np.any(self._context != 0.0))
+        self.scene = load_scene(geometry_of_context(self._context)) if self._moved else load_scene()
         self.kin = Kinematics(self.scene)
-        self.demo = scripted_demonstration(self.scene)
-        self.duration = float(self.demo.duration)
-        self.t_contact = float(self.demo.t_contact)
+        if not self._moved:  # the paper's scene: scripted at once, as it always was
+            self.demo = scripted_demonstration(self.scene)
+        plan = demonstration_waypoints()  # relative to the door: the same in every context
+        self.duration = float(DEMO_DURATION)
+        self.t_contact = float(next(wp.time for wp in plan if wp.contact and wp.width == DEMO_WIDTH))
         self.spline = BSpline(num_control_points, 8, duration=self.duration)
         self.num_steps = int(num_steps)
         self._acceleration = acceleration_feature(self.spline, self.num_steps)
@@ -96,17 +115,67 @@ class DoorTask:
         self._constraints: dict[bytes, TrajectoryProblem] = {}
         # Eq. 6 over the whole interaction: the approach above the bar, the pre-grasp, the closing,
         # pressing and pulling; every waypoint after the start moves with theta
-        self.contacts = [wp for wp in self.demo.waypoints if wp.time > 0.0]
+        self.contacts = [wp for wp in plan if wp.time > 0.0]
         self.contact_times = np.array([wp.time for wp in self.contacts])
+
+    # -- contexts (corl.problem.HasContexts) ------------------------------------------------------
+    @property
+    def context(self) -> np.ndarray:
+        """This task's context c (4,) = (dz, dx, dy, yaw) (a copy)."""
+        return self._context.copy()
+
+    def with_context(self, c) -> "DoorTask":
+        """The same task with the door in context ``c`` (4,): same theta, spline, cost, force noise
+        and seed, and the same contact instants (also when this task was re-timed); h, the
+        demonstration and the rollout are those of the moved door."""
+        c = check_context(c)
+        task = type(self)(num_control_points=self.spline.num_control_points, num_steps=self.num_steps,
+                          force_noise=self.force_noise, seed=self.seed, context=c)
+        if not np.array_equal(task.contact_times, self.contact_times):
+            times = self.contact_times.copy()
+            task = task.retimed(lambda _: times)
+        return task
 
     # -- the demonstration --------------------------------------------------------------------------
     @cached_property
+    def demo(self):
+        """The scripted :class:`corl.tasks.door.demo.DoorDemonstration` in this task's scene: a moved
+        door's on first use, the first grasp shift whose trial succeeds
+        (:func:`corl.tasks.door.contexts.context_demonstration`; DemonstrationFailedError if none)."""
+        return context_demonstration(self.scene, self._context,
+                                     accept=lambda demo: self.rollout(self.fit_demonstration(demo)).success)
+
+    @cached_property
     def _demo_w(self) -> np.ndarray:
+        return self.fit_demonstration(self.demo)
+
+    def fit_demonstration(self, demo) -> np.ndarray:
+        """w0 (n,) of a scripted :class:`corl.tasks.door.demo.DoorDemonstration`: its B-spline fit. In a
+        moved scene it starts at the rest posture exactly (h holds it there) and, should the fit miss
+        a waypoint by more than ``corl.realise.DEMONSTRATION_TOLERANCE``, is projected onto h = 0
+        (Eq. 18, :func:`corl.realise.project_demonstration`)."""
+        from corl.realise import DEMONSTRATION_TOLERANCE, constraint_violation, project_demonstration
+
         t = np.arange(int(round(self.duration / CONTROL_DT)) + 1) * CONTROL_DT
-        return self.spline.fit(t, self.demo.reference(CONTROL_DT))
+        w = self.spline.fit(t, demo.reference(CONTROL_DT))
+        if self._moved:
+            w[:8] = self._start
+            theta = self.theta_of(w)
+            if constraint_violation(self, w, theta) > DEMONSTRATION_TOLERANCE:
+                w = project_demonstration(self, Demonstration(w, theta))[0].w
+        return w
+
+    @cached_property
+    def _start(self) -> np.ndarray:
+        """The configuration h holds at t = 0 (the first control point, 8,): the same in every context."""
+        if not self._moved:
+            return self._demo_w[:8]
+        return rest_start(self.spline.num_control_points, self.duration)
 
     def demonstration(self) -> Demonstration:
-        """The scripted demonstration as B-spline control points, and its theta = (0, width)."""
+        """The scripted demonstration as B-spline control points, and its theta = (shift, width): shift
+        0 in the paper's scene, where a moved door makes the arm grasp further out (see
+        :mod:`corl.tasks.door.contexts`)."""
         w0 = self._demo_w.copy()
         return Demonstration(w0, self.theta_of(w0))
 
@@ -122,12 +191,15 @@ class DoorTask:
 
         kin = self.kin
         return stack(position_feature(kin, kin.pads),
-                     orientation_feature(kin, kin.hand, grasp_rotation(wp.phi, wp.alpha), weight=ROT_WEIGHT, exact=False),
+                     orientation_feature(kin, kin.hand, self._grasp_rotation(wp), weight=ROT_WEIGHT, exact=False),
                      coordinate_feature(8, 7))
+
+    def _grasp_rotation(self, wp) -> np.ndarray:
+        return grasp_rotation(wp.phi, wp.alpha, self.scene.geometry.yaw)
 
     def _targets(self, wp, theta) -> np.ndarray:
         r = wp.r + float(theta[0])
-        point = self.scene.handle_point(r, wp.phi, wp.alpha) - wp.backoff * grasp_rotation(wp.phi, wp.alpha)[:, 0]
+        point = self.scene.handle_point(r, wp.phi, wp.alpha) - wp.backoff * self._grasp_rotation(wp)[:, 0]
         width = float(theta[1]) if wp.width == DEMO_WIDTH else wp.width  # closed from t_c on
         return np.concatenate([point, np.zeros(3), [width]])
 
@@ -135,7 +207,7 @@ class DoorTask:
         key = np.asarray(theta, dtype=float).tobytes()
         problem = self._constraints.get(key)
         if problem is None:
-            q0 = self._demo_w[:8]  # the first control point is the start configuration (clamped)
+            q0 = self._start  # the first control point is the start configuration (clamped)
             eqs = [configuration_feature(self.spline, 0.0, q0)]
             for wp in self.contacts:
                 eqs.append(TaskSpaceFeature(self.spline, self._fk(wp, theta), [wp.time], self._targets(wp, theta)))
@@ -159,8 +231,8 @@ class DoorTask:
         q = self.spline.positions(w, [self.t_contact])[0]
         p = self.kin.contact_point(q)
         wp = self.contacts[self._grasp_index]
-        # at the grasp the door and handle are at rest: handle_point(r) = pivot - r * y_axis
-        along = float(self.scene.pivot_world[1] - p[1])
+        # at the grasp the door and handle are at rest: handle_point(r) = pivot + R_yaw (-standoff, -r, 0)
+        along = self.scene.along_lever(p)
         return np.array([along - wp.r, float(q[7])])
 
     @cached_property
@@ -257,7 +329,7 @@ class DoorTask:
         panels = []
         for name, w in (("demonstration", w_demo), ("learned", w_learned)):
             t, q = self.reference(w)
-            frames, result = render_rollout(q, t_contact=grasp_instant(t, q))
+            frames, result = render_rollout(q, t_contact=grasp_instant(t, q), scene=self.scene)
             r, _ = self.cost_residuals(w)
             panels.append(caption(frames, f"{name}: J = {r @ r:.0f}, force {result.force_mean:.1f} N, "
                                           f"door {np.degrees(result.hinge_final):.0f} deg"))

@@ -20,12 +20,13 @@ def door_camera(scene) -> Camera:
 
 
 def render_rollout(reference, *, duration: float = 5.0, t_contact=None, fps: int = 25,
-                   width: int = 480, height: int = 360, label: str = ""):
-    """Simulate ``reference`` and return ``(frames (F, height, width, 3) uint8, RolloutResult)``."""
+                   width: int = 480, height: int = 360, label: str = "", scene=None):
+    """Simulate ``reference`` in ``scene`` (default: the unmoved door's) and return
+    ``(frames (F, height, width, 3) uint8, RolloutResult)``."""
     from corl.tasks.door.scene import load_scene
     from corl.tasks.door.sim import rollout
 
-    scene = load_scene()
+    scene = scene or load_scene()
     recorder = FrameRecorder(scene.model, door_camera(scene), fps=fps, width=width, height=height)
     try:
         result = rollout(reference, duration=duration, t_contact=t_contact, scene=scene,
