@@ -1,4 +1,4 @@
-"""Bad input to corl's public Python API (issue 21): settings, the optimizer API, the MuJoCo kit's loaders.
+"""Bad input to corl's public Python API (issues 21, 22): settings, the optimizer API, contexts, the MuJoCo kit's loaders.
 
 Each case calls one public function in this process, as a user's script would. A case either must
 be *refused* (a :class:`corl.errors.CorlError` with a one-line message) or must *work* (no
@@ -133,6 +133,41 @@ def _kit_cases(folder: Path) -> list[tuple[str, str, Callable]]:
     ]
 
 
+def _context_cases() -> list[tuple[str, str, Callable]]:
+    """Contexts (issue 22): a skill, a contextual learner and the task protocol, given bad scenes."""
+    from corl.contexts import Anchor, ContextData, ContextualCORL, ContextualModels, Skill
+    from corl.problem import Bounds, check_task
+    from corl.tasks.synthetic import ContextualSyntheticTask, SyntheticTask
+
+    task = ContextualSyntheticTask((0.5, 0.5))
+    data = ContextData.empty(1, 1).add([0.0], [0.0], True, 1.0)
+    anchor = Anchor(np.zeros(1), np.array([1.0, 0.0]), np.zeros(1), 1.0)
+
+    def skill():
+        return Skill(task, data, [anchor])
+
+    class HalfContexts(SyntheticTask):
+        context_bounds = Bounds(np.array([0.0]), np.array([1.0]))  # no context, no with_context
+
+    return [
+        ("Skill.policy(c outside the box)", REFUSE, lambda: skill().policy([3.0])),
+        ("Skill.policy([nan])", REFUSE, lambda: skill().policy([math.nan])),
+        ("Skill.policy('near the door')", REFUSE, lambda: skill().policy("near the door")),
+        ("Skill.policy(two numbers for one context)", REFUSE, lambda: skill().policy([0.1, 0.2])),
+        ("Skill(..., anchors=[])", REFUSE, lambda: Skill(task, data, [])),
+        ("Skill(..., p_min=1.5)", REFUSE, lambda: Skill(task, data, [anchor], p_min=1.5)),
+        ("Skill(task without contexts, ...)", REFUSE, lambda: Skill(SyntheticTask(), data, [anchor])),
+        ("ContextualCORL(c = inf)", REFUSE, lambda: ContextualCORL(task, [math.inf], skill())),
+        ("task.with_context([2.0])", REFUSE, lambda: task.with_context([2.0])),
+        ("ContextData(success without return)", REFUSE,
+         lambda: ContextData(np.zeros((1, 1)), np.zeros((1, 1)), [True], [math.nan])),
+        ("ContextualModels(prior of another shape)", REFUSE,
+         lambda: ContextualModels(task.theta_bounds, task.context_bounds, ContextData.empty(2, 1), [0.0])),
+        ("check_task(context_bounds only)", REFUSE, lambda: check_task(HalfContexts())),
+        ("Skill.policy(c at the box's corner)", WORK, lambda: skill().policy([1.0])),
+    ]
+
+
 def run_case(expect: str, fn: Callable) -> tuple[str, str, bool]:
     """(what happened, first line of the message, counts as a problem)."""
     from corl.errors import CorlError
@@ -157,7 +192,8 @@ def main() -> int:
         have_mujoco = False
     rows, problems = [], 0
     with tempfile.TemporaryDirectory() as tmp:
-        groups = [("settings", _settings_cases()), ("optimizer API", _optimizer_cases())]
+        groups = [("settings", _settings_cases()), ("optimizer API", _optimizer_cases()),
+                  ("contexts", _context_cases())]
         if have_mujoco:
             groups.append(("kit loaders", _kit_cases(Path(tmp))))
         for group, cases in groups:

@@ -22,7 +22,8 @@ it, with no import cycles: ``tools/check_layers.py`` declares the order and ``ma
 * :mod:`corl.settings`, :mod:`corl.methods`: the settings a task gives (``MethodSettings`` and
   the configs) and the methods of Fig. 1 by name (``make_method``);
 * :mod:`corl.tasks`: the synthetic benchmark and the simulated PR2 door;
-* :mod:`corl.store`, :mod:`corl.session`: the run store and resumable runs;
+* :mod:`corl.store`, :mod:`corl.contexts`, :mod:`corl.session`: the run store, one skill across
+  scenes (``corl.Skill.load(store, task).policy(c)``) and resumable runs;
 * :mod:`corl.experiments`: the studies of Fig. 1 and Fig. 3, tables, figures, reports, sweeps;
 * :mod:`corl.progress`, :mod:`corl.arguments`, :mod:`corl.cli`: the ``corl`` command.
 
@@ -50,6 +51,8 @@ _LAZY = {  # public name -> module that defines it
     "StopReason": "corl.optimizers.base",
     "Bounds": "corl.problem",
     "Outcome": "corl.problem",
+    "Skill": "corl.contexts",
+    "ContextualCORL": "corl.contexts",
 }
 
 # no __all__: pdoc follows a package's __all__, and corl's reference walks every submodule

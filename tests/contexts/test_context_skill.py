@@ -24,18 +24,24 @@ def trained(tmp_path_factory):
 
 
 def test_the_learned_theta_star_of_c_is_the_closed_form_over_the_box(trained):
+    """In each of 9 scenes across the box: the skill's first trial succeeds with no trial before it,
+    near the optimum (it trades return for safety: within 0.2 rad), and learning in the scene from it
+    ends within the paper's found tolerance of the closed form, with at most 3 failures."""
     task, store, _, rows = trained
     assert rows[0]["start"] == "demonstration" and all(r["start"] == "skill" for r in rows[1:])
     skill = Skill.load(store, task)
     assert len(skill.anchors) == 8
-    for c in np.linspace(-1.0, 1.0, 11):
-        policy = skill.policy([c])
+    for c in np.linspace(-1.0, 1.0, 9):
         theta, w = optimum_of(c)
-        assert policy.feasible
-        assert np.linalg.norm(policy.w - w) < FOUND_TOLERANCE, (c, policy.theta, theta)
-        assert abs(policy.theta[0] - theta) < FOUND_TOLERANCE
-        assert policy.p_success > 0.5 and policy.R_mean == pytest.approx(1.0, abs=0.1)
-        assert task.with_context([c]).rollout(policy.w).success  # the first trial in that scene succeeds
+        policy = skill.policy([c])
+        assert policy.feasible and abs(policy.theta[0] - theta) < 0.2, (c, policy.theta)
+        scene = task.with_context([c])
+        assert scene.rollout(policy.w).success  # the first trial in that scene succeeds
+        learner = ContextualCORL(task, [c], skill, seed=0)
+        drive(learner, scene, max_trials=100)
+        assert learner.done and sum(not o.success for _, o in learner.history) <= 3
+        assert np.linalg.norm(learner.best.w - w) < FOUND_TOLERANCE, (c, learner.best.theta, theta)
+        assert abs(learner.best.theta[0] - theta) < FOUND_TOLERANCE
 
 
 def test_the_policy_unpacks_and_refuses_contexts_outside_the_box(trained):
@@ -43,7 +49,7 @@ def test_the_policy_unpacks_and_refuses_contexts_outside_the_box(trained):
     skill = Skill.load(store, task)
     w, theta, p, r = skill.policy([0.3])
     assert w.shape == (2,) and theta.shape == (1,) and 0 < p < 1 and np.isfinite(r)
-    for bad, says in (([1.2], "outside the bounds"), ([np.nan], "NaN"), ([0.1, 0.2], "shape"), ("a", "numbers")):
+    for bad, says in (([1.2], "outside the bounds"), ([np.nan], "NaN"), ([0.1, 0.2], "shape"), ("a", "must be 1 number")):
         with pytest.raises(InputError, match=says) as err:
             skill.policy(bad)
         assert "\n" not in str(err.value)

@@ -28,10 +28,23 @@ import numpy as np
 
 from corl.errors import InputError
 from corl.gp import SquaredExponential
-from corl.gp.fitting import ClassifierPriors, RegressionPriors, fit_classifier, fit_regression
+from corl.gp.fitting import ClassifierPriors, HyperPrior, RegressionPriors, fit_classifier, fit_regression
 from corl.problem import Bounds
 
-__all__ = ["Anchor", "ContextData", "ContextSlice", "ContextualModels", "joint_bounds"]
+__all__ = ["Anchor", "ContextData", "ContextSlice", "ContextualModels", "joint_bounds", "CONTEXT_LENGTHSCALE",
+           "joint_lengthscale_priors"]
+
+#: The length-scale prior of a context coordinate (unit box), for g_R and g_S alike: scenes across
+#: half the box are alike unless the data say otherwise. Theta's priors (0.25 for g_R, 0.1 for g_S)
+#: are short because the optimizer chooses theta and should step carefully into the unknown; it
+#: cannot choose the context, and a short prior there would keep every scene's data to itself
+#: (with 8 training scenes in 4-D, g_S's success probability in a new scene stayed below 0.5).
+CONTEXT_LENGTHSCALE = HyperPrior(0.5, 0.75, 0.03, 3.0)
+
+
+def joint_lengthscale_priors(theta_prior: HyperPrior, m: int, k: int) -> list[HyperPrior]:
+    """Length-scale priors over ``(theta, c)``: theta's own, then :data:`CONTEXT_LENGTHSCALE`."""
+    return [theta_prior] * m + [CONTEXT_LENGTHSCALE] * k
 
 
 def joint_bounds(theta_bounds: Bounds, context_bounds: Bounds) -> Bounds:
@@ -175,7 +188,8 @@ class ContextualModels:
             raise InputError(f"prior data has theta {prior.theta.shape[1]} / context {prior.context.shape[1]} columns; "
                              f"the task has {self.m} / {self.k}")
         self.prior = prior
-        self.regression_priors, self.classifier_priors, self.prior_mean = regression_priors, classifier_priors, prior_mean
+        self.regression_priors, self.classifier_priors = regression_priors, classifier_priors
+        self.prior_mean = prior_mean
         self._warm: dict[str, np.ndarray | None] = {"regression": None, "classifier": None}
         self._last_classifier = None
         self.fallback: dict[str, str] = {}
@@ -198,7 +212,9 @@ class ContextualModels:
         yj = np.concatenate([p.returns[ok], np.asarray(y, dtype=float)])
         if len(yj) == 0:
             return None
-        res = fit_regression(Xj, yj, self.bounds, self.regression_priors, warm=self._warm["regression"])
+        res = fit_regression(Xj, yj, self.bounds, self.regression_priors, warm=self._warm["regression"],
+                             lengthscale_priors=joint_lengthscale_priors(self.regression_priors.lengthscale,
+                                                                         self.m, self.k))
         if not res.fallback:
             self._warm["regression"] = res.log_params
         self.fallback["regression"] = res.fallback
@@ -211,7 +227,9 @@ class ContextualModels:
         Xj = self._joint(X, p.theta, p.context)
         sj = np.concatenate([p.success, np.asarray(s, dtype=bool)])
         res = fit_classifier(Xj, sj, self.bounds, self.prior_mean, self.classifier_priors,
-                             warm=self._warm["classifier"], previous=self._last_classifier)
+                             warm=self._warm["classifier"], previous=self._last_classifier,
+                             lengthscale_priors=joint_lengthscale_priors(self.classifier_priors.lengthscale,
+                                                                         self.m, self.k))
         if not res.fallback:
             self._warm["classifier"] = res.log_params
         self.fallback["classifier"] = res.fallback

@@ -4,9 +4,11 @@ What a skill holds: the task (with contexts, :class:`corl.problem.HasContexts`),
 data of every context learned (:class:`~corl.contexts.models.ContextData`) and one anchor per
 learned context, its best policy ``(w*, theta*)``. For a context ``c`` it answers
 
-1. theta: the maximiser of g_R's posterior mean over ``(theta, c)`` among the thetas whose
-   success probability at ``c`` (g_S over ``(theta, c)``) is at least ``p_min``; when none is, the
-   theta most likely to succeed;
+1. theta: the maximiser of the expected return at ``c``, ``p(theta, c) R_mean(theta, c) + (1 - p)
+   R_fail``, with g_S's success probability ``p`` and g_R's posterior mean over ``(theta, c)``, and a
+   failure worth ``R_fail``, the lowest return seen less the returns' spread (a failure is worse than
+   any success). No threshold on ``p``: its scale depends on the task (a pessimistic prior mean
+   makes a wide safe set read 0.8-0.98 inside), the trade-off between return and risk does not;
 2. w: the nearest anchor's ``w*`` (distance of contexts in the unit box) realised in scene ``c``
    at that theta by Eq. 18 (:func:`corl.realise.realise`), then improved by step 1 of
    Algorithm 1 run to convergence (Eq. 8 without a trust region: J and h are analytic, so this
@@ -23,7 +25,8 @@ from functools import cached_property
 
 import numpy as np
 
-from corl.contexts.models import Anchor, ContextData, joint_bounds
+from corl import checks
+from corl.contexts.models import Anchor, ContextData, joint_bounds, joint_lengthscale_priors
 from corl.errors import InputError
 from corl.gp.fitting import ClassifierPriors, RegressionPriors, fit_classifier, fit_regression
 from corl.problem import Bounds, Task, check_theta, context_of
@@ -32,8 +35,9 @@ from corl.trajectory.solver import SolverConfig, solve
 
 __all__ = ["Anchor", "Policy", "Skill", "P_MIN", "context_task"]
 
-P_MIN = 0.7  # a skill proposes a theta it predicts to succeed at least this often: SEIB's inner region (p_inner)
-P_SLACK = 0.05  # where no theta reaches p_min: those within this of the surest one count as likely
+#: The skill knows a scene when its start there succeeds with at least this probability; then learning
+#: in the scene refines it (:data:`corl.contexts.learn.IN_A_NEW_SCENE`), else it explores as in one scene
+P_MIN = 0.95
 _CANDIDATES = 512  # random thetas per policy, besides the data and the anchors
 
 
@@ -76,7 +80,7 @@ class Skill:
     task : a task with contexts (the one the demonstration was recorded in, or any of its family).
     data : the black-box trials of every context learned.
     anchors : the best policy of each learned context (at least one).
-    p_min : the success probability a proposed theta needs (:data:`P_MIN`).
+    p_min : the success probability from which the skill counts as knowing a scene (:data:`P_MIN`).
     solver : the motion solver's settings (Eq. 18 and step 1).
     """
 
@@ -88,8 +92,9 @@ class Skill:
         if not anchors:
             raise InputError("a skill needs at least one learned context: run corl in one context first "
                              "(corl run TASK --context ...)")
-        if not (0.0 < float(p_min) < 1.0):
-            raise InputError(f"p_min must lie in (0, 1), got {p_min!r}")
+        p_min = checks.number("Skill p_min", p_min, low=0.0, low_open=True)
+        if not p_min < 1.0:
+            raise InputError(f"Skill p_min is a probability in (0, 1), got {p_min!r}")
         self.data, self.anchors, self.p_min, self.solver = data, list(anchors), float(p_min), solver
         self.seed = int(seed)
 
@@ -104,10 +109,14 @@ class Skill:
         d = self.data
         X = np.hstack([d.theta, d.context])
         ok = d.success & np.isfinite(d.returns)
+        m, k = self.theta_bounds.dim, self.context_bounds.dim
+        rp, cp = RegressionPriors(), ClassifierPriors()
         regression = None
         if np.any(ok):
-            regression = fit_regression(X[ok], d.returns[ok], self._joint, RegressionPriors()).model
-        classifier = fit_classifier(X, d.success, self._joint, -7.0, ClassifierPriors()).model
+            regression = fit_regression(X[ok], d.returns[ok], self._joint, rp,
+                                        lengthscale_priors=joint_lengthscale_priors(rp.lengthscale, m, k)).model
+        classifier = fit_classifier(X, d.success, self._joint, -7.0, cp,
+                                    lengthscale_priors=joint_lengthscale_priors(cp.lengthscale, m, k)).model
         return regression, classifier
 
     def check_context(self, c) -> np.ndarray:
@@ -117,7 +126,8 @@ class Skill:
         except InputError as exc:
             raise InputError(f"{exc}; the skill learned this box only, so it cannot say what to do there") from None
         except (TypeError, ValueError):
-            raise InputError(f"a context must be {self.context_bounds.dim} numbers, got {c!r:.60}") from None
+            k = self.context_bounds.dim
+            raise InputError(f"a context must be {k} number{'s' if k > 1 else ''}, got {c!r:.60}") from None
 
     def nearest(self, c) -> Anchor:
         """The anchor whose context is nearest ``c`` in the unit box."""
@@ -137,7 +147,8 @@ class Skill:
         return p, mu, np.sqrt(np.maximum(var, 0.0))
 
     def choose_theta(self, c) -> np.ndarray:
-        """The theta to try at ``c``: best predicted return among those likely to succeed (module docstring)."""
+        """The theta to try at ``c``: the highest expected return, a failure counted as :attr:`failure_return`
+        (module docstring)."""
         c = self.check_context(c)
         rng = np.random.default_rng([self.seed, 7])
         cand = np.vstack([self.data.theta, [a.theta for a in self.anchors],
@@ -146,14 +157,20 @@ class Skill:
         local = near + 0.05 * self.theta_bounds.width * rng.standard_normal((_CANDIDATES // 2, self.theta_bounds.dim))
         cand = np.vstack([cand, self.theta_bounds.clip(local)])
         p, mu, _ = self.predict(cand, c)
-        # likely to succeed: p_min, or, where the skill is nowhere that sure (a scene far from every
-        # learned one), within P_SLACK of the surest theta
-        likely = p >= min(self.p_min, float(np.max(p)) - P_SLACK)
-        if np.all(np.isfinite(mu[likely])):
-            idx = np.flatnonzero(likely)[int(np.argmax(mu[likely]))]
-        else:
-            idx = int(np.argmax(p))
-        return cand[idx].copy()
+        if not np.all(np.isfinite(mu)):  # no success anywhere yet: the surest theta
+            return cand[int(np.argmax(p))].copy()
+        score = p * mu + (1.0 - p) * self.failure_return
+        return cand[int(np.argmax(score))].copy()
+
+    @cached_property
+    def failure_return(self) -> float:
+        """What a failure is worth to :meth:`choose_theta`: below every return seen, by their spread."""
+        ok = self.data.success & np.isfinite(self.data.returns)
+        r = self.data.returns[ok]
+        if r.size == 0:
+            return 0.0
+        spread = float(np.std(r)) if r.size > 1 else 0.0
+        return float(np.min(r)) - (spread if spread > 0 else max(1.0, abs(float(np.min(r)))))
 
     # -- the motion ----------------------------------------------------------------------------
     def motion(self, c, theta, anchor: Anchor | None = None) -> tuple[np.ndarray, bool]:

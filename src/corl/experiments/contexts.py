@@ -11,11 +11,13 @@ each of M held-out test contexts drawn from the box, side by side:
   ``theta*``) and used as it is: one trial.
 
 Each runs until it stops or ``budget`` trials. The ground truth of a test context is a sweep of
-its theta box realised from the scene's demonstration (what ``corl sweep`` does); its best
+its theta box realised from the scene's demonstration after step 1 to convergence (the motion
+every learner starts to optimise; what ``corl sweep`` does from that anchor); its best
 return ``R_best`` defines the target ``R >= R_best - 0.05 |R_best|`` (95 % of it for a positive
 return). Per method and test context: whether the first trial succeeded, the trials until the
 target (the budget when never), the failures, and the final return (the best successful one)
-over ``R_best``. Test contexts run in parallel workers, each reading the training store.
+over ``R_best``; ``failures_to_95`` counts the failures until the target. Test contexts run in
+parallel workers, each reading the training store.
 """
 
 from __future__ import annotations
@@ -123,11 +125,13 @@ def _grid(dim: int) -> tuple[int, ...]:
 def _scores(outcomes, target: float, budget: int, best_swept: float) -> dict:
     """What one method did in one context, from its trials' outcomes (in order)."""
     reach = next((i + 1 for i, o in enumerate(outcomes) if o.success and o.return_ >= target), budget)
+    before = outcomes[:reach]  # the trials until the target (all of them when it was never reached)
     returns = [o.return_ for o in outcomes if o.success]
     final = max(returns) if returns else None
     ratio = 0.0 if final is None else float(final / best_swept) if best_swept != 0 else float("nan")
     return {"trials": len(outcomes), "first_trial_success": bool(outcomes and outcomes[0].success),
             "trials_to_95": int(reach), "failures": sum(not o.success for o in outcomes),
+            "failures_to_95": sum(not o.success for o in before),
             "final_return": final, "final_return_ratio": ratio}
 
 
@@ -137,14 +141,20 @@ def evaluate_context(spec: str, seed: int, store: str, context, budget: int, gri
     from corl.experiments.sweep import _solver, evaluate_points
     from corl.loop import drive
     from corl.methods import make_method
-    from corl.realise import realise
+    from corl.realise import feasible, motion_problem, realise
+    from corl.trajectory.solver import solve
 
     task = _task(spec, seed)
     c = np.asarray(context, dtype=float)
     scene = task.with_context(c)
     t0 = time.perf_counter()
-    # ground truth: the sweep of this scene from its own demonstration
+    # ground truth: the sweep of this scene from its own demonstration's motion at its best (Eq. 8 at
+    # theta0 to convergence, no trial: R depends on the motion, and every learner optimises it)
     demo = scene.demonstration()
+    solver = _solver(scene)
+    best_motion = solve(motion_problem(scene, demo.theta), demo.w, config=solver)
+    if feasible(best_motion, solver):
+        demo = type(demo)(best_motion.w, demo.theta)
     bounds = scene.theta_bounds
     sizes = tuple(grid) if grid is not None else _grid(bounds.dim)
     axes = [np.linspace(lo, hi, g) for lo, hi, g in zip(bounds.lower, bounds.upper, sizes)]
@@ -177,7 +187,6 @@ def evaluate_context(spec: str, seed: int, store: str, context, budget: int, gri
     # nearest: the nearest training context's w* realised here at its theta*, used as is
     t0 = time.perf_counter()
     anchor = skill.nearest(c)
-    solver = _solver(scene)  # the solver the learner would use in this scene
     done = realise(scene, anchor.w, anchor.theta, anchor.theta, solver)
     if done.feasible:
         outcomes = [scene.rollout(done.w)]
@@ -199,6 +208,7 @@ def summarise(per_context: list[dict]) -> dict:
         table[name] = {"first_trial_success": float(np.mean([r["first_trial_success"] for r in rows])),
                        "trials_to_95": float(np.mean([r["trials_to_95"] for r in rows])),
                        "failures": float(np.mean([r["failures"] for r in rows])),
+                       "failures_to_95": float(np.mean([r["failures_to_95"] for r in rows])),
                        "final_return_ratio": float(np.mean([r["final_return_ratio"] for r in rows])),
                        "trials": float(np.mean([r["trials"] for r in rows]))}
     return table
@@ -226,7 +236,8 @@ def bench_contexts(spec: str, *, train_count: int, test_count: int, seed: int, o
     task = context_task(_task(spec, seed))
     box = task.context_bounds
     rng = np.random.default_rng([seed, 22])
-    contexts = np.vstack([np.asarray(task.context, dtype=float)[None], draw_contexts(box, train_count - 1, rng, spread=True)])
+    spread = draw_contexts(box, train_count - 1, rng, spread=True)
+    contexts = np.vstack([np.asarray(task.context, dtype=float)[None], spread])
     tests = draw_contexts(box, test_count, np.random.default_rng([seed, 22, 1]))
     store = Path(out) / "train.corl"
     if store.exists():
@@ -242,7 +253,8 @@ def bench_contexts(spec: str, *, train_count: int, test_count: int, seed: int, o
             if progress is not None:
                 progress("test", i + 1, len(tests), row)
     return {"task": spec, "seed": seed, "theta_labels": list(getattr(task, "theta_labels", None) or []) or None,
-            "context_labels": list(getattr(task, "context_labels", None) or []) or None, "train": trained, "test": per_context, "methods": summarise(per_context),
+            "context_labels": list(getattr(task, "context_labels", None) or []) or None, "train": trained,
+            "test": per_context, "methods": summarise(per_context),
             "budget": budget, "target_fraction": TARGET_FRACTION, "train_seconds": t_train,
             "wall_seconds": time.perf_counter() - t0, "versions": library_versions()}
 
@@ -250,16 +262,17 @@ def bench_contexts(spec: str, *, train_count: int, test_count: int, seed: int, o
 def contexts_table(payload: dict) -> str:
     """The methods side by side, means over the test contexts (what ``corl bench contexts`` prints)."""
     m = payload["methods"]
-    lines = [f"{'method':12s} {'first trial ok':>15s} {'trials to 95%':>14s} {'failures':>9s} "
+    lines = [f"{'method':12s} {'first trial ok':>15s} {'trials to 95%':>14s} {'failures':>9s} {'until 95%':>10s} "
              f"{'final R / best':>15s} {'trials':>7s}"]
     for name in METHODS:
         r = m[name]
         lines.append(f"{name:12s} {100 * r['first_trial_success']:14.0f}% {r['trials_to_95']:14.2f} "
-                     f"{r['failures']:9.2f} {r['final_return_ratio']:15.3f} {r['trials']:7.1f}")
+                     f"{r['failures']:9.2f} {r['failures_to_95']:10.2f} {r['final_return_ratio']:15.3f} "
+                     f"{r['trials']:7.1f}")
     n, k = len(payload["train"]), len(payload["test"])
     lines.append(f"(means over {k} test contexts; skill trained on {n} contexts; budget {payload['budget']} trials; "
-                 f"target R >= R_best - {1 - payload['target_fraction']:.2f} |R_best| of a {payload['test'][0]['sweep_points']}"
-                 f"-point sweep per context)")
+                 f"target R >= R_best - {1 - payload['target_fraction']:.2f} |R_best| of a "
+                 f"{payload['test'][0]['sweep_points']}-point sweep per context)")
     return "\n".join(lines)
 
 

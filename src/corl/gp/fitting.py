@@ -195,7 +195,18 @@ def _mean_and_spread(y: np.ndarray) -> tuple[float, float]:
     return top * float(np.mean(u)), top * float(np.std(u))
 
 
-def fit_regression(X, y, bounds, priors: RegressionPriors = RegressionPriors(), warm=None) -> FitResult:
+def _lengthscale_priors(default: HyperPrior, m: int, given) -> list[HyperPrior]:
+    """One length-scale prior per input dimension: ``given`` (m,) or ``default`` for every one."""
+    if given is None:
+        return [default] * m
+    given = list(given)
+    if len(given) != m or not all(isinstance(p, HyperPrior) for p in given):
+        raise InputError(f"lengthscale_priors needs one HyperPrior per input dimension ({m}), got {len(given)}")
+    return given
+
+
+def fit_regression(X, y, bounds, priors: RegressionPriors = RegressionPriors(), warm=None, *,
+                   lengthscale_priors=None) -> FitResult:
     """MAP fit of g_R (ARD squared exponential, Gaussian noise, constant mean = mean of y).
 
     Parameters
@@ -204,6 +215,8 @@ def fit_regression(X, y, bounds, priors: RegressionPriors = RegressionPriors(), 
     bounds : :class:`corl.problem.Bounds` of theta (the unit box is defined by it).
     priors : :class:`RegressionPriors` in unit-box, standardised units.
     warm : (m + 2,) unit-box log hyperparameters of the previous fit, or None.
+    lengthscale_priors : (m,) :class:`HyperPrior` per dimension in place of ``priors.lengthscale``
+        (e.g. longer ones for a context, :mod:`corl.contexts.models`), or None.
 
     Returns
     -------
@@ -214,7 +227,7 @@ def fit_regression(X, y, bounds, priors: RegressionPriors = RegressionPriors(), 
     if X.shape[0] != y.shape[0]:
         raise InputError(f"X has {X.shape[0]} rows but y has {y.shape[0]} entries; one per point")
     m = bounds.dim
-    plist = [priors.lengthscale] * m + [priors.signal_std, priors.noise_std]
+    plist = _lengthscale_priors(priors.lengthscale, m, lengthscale_priors) + [priors.signal_std, priors.noise_std]
     U = bounds.to_unit(X)
     # Standardise: z = (y - mean) / scale. One point (or equal returns) has no spread; then the
     # return's own magnitude sets the scale so that a later change of units changes nothing.
@@ -244,7 +257,7 @@ def fit_regression(X, y, bounds, priors: RegressionPriors = RegressionPriors(), 
 # g_S
 # ---------------------------------------------------------------------------------------------
 def fit_classifier(X, s, bounds, prior_mean: float, priors: ClassifierPriors = ClassifierPriors(),
-                   warm=None, previous: GPClassifier | None = None) -> FitResult:
+                   warm=None, previous: GPClassifier | None = None, *, lengthscale_priors=None) -> FitResult:
     """MAP fit of g_S's kernel with the Laplace marginal likelihood (GPML eq. 3.32, Alg. 5.1).
 
     The constant prior mean stays fixed: it encodes "unexplored regions fail" and would drift up
@@ -258,6 +271,7 @@ def fit_classifier(X, s, bounds, prior_mean: float, priors: ClassifierPriors = C
     priors : :class:`ClassifierPriors` in unit-box units.
     warm : (m + 1,) unit-box log hyperparameters of the previous fit, or None.
     previous : the previous fitted classifier; its Laplace mode warm-starts the Newton search.
+    lengthscale_priors : (m,) :class:`HyperPrior` per dimension in place of ``priors.lengthscale``, or None.
 
     Returns
     -------
@@ -268,7 +282,7 @@ def fit_classifier(X, s, bounds, prior_mean: float, priors: ClassifierPriors = C
     if X.shape[0] != y.shape[0]:
         raise InputError(f"X has {X.shape[0]} rows but s has {y.shape[0]} entries; one per point")
     m = bounds.dim
-    plist = [priors.lengthscale] * m + [priors.signal_std]
+    plist = _lengthscale_priors(priors.lengthscale, m, lengthscale_priors) + [priors.signal_std]
     U = bounds.to_unit(X)
     v, reason = _warm_start(warm, plist), ""
     if y.size == 0 or np.all(y == y[0]):
