@@ -52,16 +52,13 @@ class StartedTask:
     def demonstration(self) -> Demonstration:
         return Demonstration(np.array(self._start.w, dtype=float), np.array(self._start.theta, dtype=float))
 
-    def retimed(self, time_map):
-        inner = getattr(self._task, "retimed")(time_map)
-        return StartedTask(inner, self._start)
-
     def __getattr__(self, name):
         if name.startswith("__") or name in ("_task", "_start"):
             raise AttributeError(name)
-        if name == "retimed" and getattr(self._task, "retimed", None) is None:
-            raise AttributeError(name)
-        return getattr(self._task, name)
+        value = getattr(self._task, name)  # AttributeError when the task lacks it (optional members)
+        if name == "retimed" and callable(value):  # a re-timed copy keeps the start
+            return lambda time_map: StartedTask(value(time_map), self._start)
+        return value
 
 
 def contextual_factory(task: Task, settings, prior: ContextData, context, *, refine: bool = False):
