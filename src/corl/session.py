@@ -48,23 +48,25 @@ def _settings(task: Task, corl_overrides: dict | None):
     return replace(settings, corl=replace(settings.corl, **corl_overrides)) if corl_overrides else settings
 
 
-def _build_in_context(task: Task, method: str, seed: int, corl_overrides: dict | None, context,
-                      store: RunStore | None, before: int | None):
-    """The learner of a run in ``context``: what the store's earlier runs taught (:mod:`corl.contexts`)."""
-    from corl.contexts import ContextualCORL, Skill, context_task, learned, plain_learner
+def _build_in_context(task: Task, method: str, seed: int, corl_overrides: dict | None, context, store,
+                      upto: dict):
+    """The learner of a run in ``context``: what the store's runs named by ``upto`` (run id -> told
+    trials, :func:`corl.contexts.snapshot`) taught (:mod:`corl.contexts`)."""
+    from corl.contexts import ContextualCORL, Skill, context_task, failed_motions, learned, plain_learner
+    from corl.contexts.skill import scene_of
 
     task = context_task(task)
     if method != "CORL":
         raise InputError(f"a run in a context learns with the CORL method (SEIB on GPs over (theta, c)); "
                          f"got --method {method}: drop it, or drop --context")
     c = np.asarray(context, dtype=float)
-    scene = task.with_context(c) if not np.array_equal(c, np.asarray(task.context, dtype=float)) else task
+    scene = scene_of(task, c) if not np.array_equal(c, np.asarray(task.context, dtype=float)) else task
     settings = _settings(scene, corl_overrides)
-    anchors = learned(store, task, before=before)[1] if store is not None else []
+    data, anchors = learned(store, task, upto=upto) if store is not None and upto else (None, [])
     if not anchors:  # the first context: Algorithm 1 from the demonstration of that scene
         return plain_learner(scene, seed=seed, settings=settings)
-    data, anchors = learned(store, task, before=before)
-    return ContextualCORL(task, c, Skill(task, data, anchors), settings=settings, seed=seed)
+    return ContextualCORL(task, c, Skill(task, data, anchors), settings=settings, seed=seed,
+                          failed=failed_motions(store, task, c, upto=upto))
 
 
 def check_context(task: Task, context) -> np.ndarray:
@@ -109,9 +111,13 @@ class StoredRun:
         """
         from corl.problem import context_of
 
+        upto: dict = {}
         if context is not None:
+            from corl.contexts import context_task, snapshot
+
             context = check_context(task, context)
-            learner = _build_in_context(task, method, seed, corl_overrides, context, learned_from, None)
+            upto = snapshot(learned_from, context_task(task)) if learned_from is not None else {}
+            learner = _build_in_context(task, method, seed, corl_overrides, context, learned_from, upto)
         else:
             learner = _build(task, method, seed, corl_overrides)
         config = {"task_spec": task_spec, "task_name": task.name}
@@ -121,6 +127,8 @@ class StoredRun:
         if context is not None or own is not None:  # a task with contexts: every run records its scene
             config["context"] = _plain(context if context is not None else own)
             config["contextual"] = context is not None
+            if context is not None:
+                config["learned_from"] = upto  # exactly what it learned from: reopened, it reads the same
         cfg = getattr(learner, "config", None)
         if cfg is not None:
             config["learner"] = _plain(asdict(cfg))
@@ -147,9 +155,12 @@ class StoredRun:
             raise InputError(f"run {info.id} in {store.path} is for task '{info.task}', but the task given is "
                              f"'{task.name}'; name the same task as when the run was started")
         seed = 0 if info.seed is None else int(info.seed)
-        if info.config.get("contextual"):  # learned in a context: from the runs before it, as when it started
+        if info.config.get("contextual"):  # learned in a context: from what it learned from when it started
+            upto = info.config.get("learned_from")
+            if upto is None:  # a run of corl before learned_from was recorded: the runs before it, whole
+                upto = {str(r.id): r.n_told for r in store.runs() if r.id < info.id}
             learner = _build_in_context(task, info.method, seed, info.config.get("corl_overrides"),
-                                        check_context(task, info.config["context"]), store, info.id)
+                                        check_context(task, info.config["context"]), store, upto)
         else:
             learner = _build(task, info.method, seed, info.config.get("corl_overrides"))
         replay(learner, store, info.id)

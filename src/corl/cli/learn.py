@@ -138,7 +138,8 @@ def ask(
             session.attach(db).hand_out(proposal)
     except CorlError as exc:
         fail(str(exc))
-    _write_trial(out or store.parent, the_task, proposal, trajectory)
+    _write_trial(out or store.parent, the_task, proposal, trajectory, run_id=session.run_id,
+                 context=getattr(the_task, "context", None) if getattr(the_task, "with_context", None) else None)
 
 
 def _run_to_ask(task: str, store: Path, *, method, seed, raw: bool, rate: float, context):
@@ -202,13 +203,17 @@ def _refuse_new_runs(db, store: Path, seen) -> None:
         fail(f"another process started a run in {store} meanwhile; nothing was written: run the command again")
 
 
-def _refuse_other_scene(info, store: Path, c) -> None:
-    """``corl ask --context C`` while the store's latest run is unfinished: only in scene C does it go on."""
+def _refuse_other_scene(info, store: Path, c, *, resume_hint: bool = False) -> None:
+    """``corl ask --context C`` (or ``corl run --context C`` without ``--resume``) while the store's latest
+    run is unfinished: only in scene C does ``ask`` go on; ``run`` continues it with ``--resume``."""
     import numpy as np
 
     rc = recorded_context(info)
     if rc is not None and rc.shape == c.shape and np.array_equal(rc, c):
-        return
+        if not resume_hint:
+            return
+        fail(f"run {info.id} in {store} is in context {context_text(c)} and not finished: continue it with "
+             "corl run --resume (a new run would leave it, and any trial pending on the robot, behind)")
     where = "no context" if rc is None else f"context {context_text(rc)}"
     pending = info.n_trials > info.n_told
     state, first = (", a trial is pending", "corl tell its pending trial, then ") if pending else ("", "")
@@ -217,8 +222,9 @@ def _refuse_other_scene(info, store: Path, c) -> None:
          "done), or use another --store")
 
 
-def _write_trial(folder: Path, the_task, proposal, trajectory) -> None:
-    """Write the handed-out trial (trajectory CSV/NPZ, or the raw w) and print where it went."""
+def _write_trial(folder: Path, the_task, proposal, trajectory, *, run_id=None, context=None) -> None:
+    """Write the handed-out trial (trajectory CSV/NPZ, or the raw w) and print where it went; the NPZ and
+    the printed line name the run and, for a task with contexts, the scene it is for."""
     import numpy as np
 
     from corl.experiments.sweep import write_raw_parameters
@@ -229,16 +235,19 @@ def _write_trial(folder: Path, the_task, proposal, trajectory) -> None:
         t, q = trajectory
         folder.mkdir(parents=True, exist_ok=True)
         stem = folder / f"trial_{proposal.index:04d}"
-        np.savez(stem.with_suffix(".npz"), t=t, q=q, w=proposal.w, theta=proposal.theta)
+        scene = {} if context is None else {"context": np.asarray(context, dtype=float)}
+        np.savez(stem.with_suffix(".npz"), t=t, q=q, w=proposal.w, theta=proposal.theta,
+                 run=np.array(-1 if run_id is None else run_id), **scene)
         names = getattr(the_task, "joint_names", None) or [f"q{j}" for j in range(q.shape[1])]
         np.savetxt(stem.with_suffix(".csv"), np.column_stack([t, q]), delimiter=",", header="t," + ",".join(names),
                    comments="")
     except OSError as exc:
         fail(f"cannot write trial {proposal.index} to {folder}: {exc.strerror}; the trial is stored as pending: "
              "free space (or give another --out) and run 'corl ask' again to write it")
-    typer.echo(json.dumps({"trial": proposal.index, "step": proposal.step, "round": proposal.round,
-                           "theta": proposal.theta.tolist(), "csv": str(stem.with_suffix(".csv")),
-                           "npz": str(stem.with_suffix(".npz"))}))
+    scene = {} if context is None else {"context": np.asarray(context, dtype=float).tolist()}
+    typer.echo(json.dumps({"trial": proposal.index, "run": run_id, **scene, "step": proposal.step,
+                           "round": proposal.round, "theta": proposal.theta.tolist(),
+                           "csv": str(stem.with_suffix(".csv")), "npz": str(stem.with_suffix(".npz"))}))
 
 
 def tell(
@@ -293,6 +302,7 @@ def _run_to_continue(task: str, store_path: Path, *, resume: bool, method, seed,
     ``seen``: for a new run in a context, ``(id of the latest run it learned up to,)``; else None."""
     from corl.methods import DEFAULT_METHOD
     from corl.session import StoredRun
+    from corl.store import RunStatus
     from corl.tasks.registry import BUILTIN_TASKS, load_task
 
     info = latest_run(store_path) if resume else None  # read-only
@@ -305,6 +315,8 @@ def _run_to_continue(task: str, store_path: Path, *, resume: bool, method, seed,
         if context is not None:
             c = parse_context(the_task, context)
             latest = latest_run(store_path)
+            if latest is not None and latest.status is not RunStatus.FINISHED:  # its robot trial would be orphaned
+                _refuse_other_scene(latest, store_path, c, resume_hint=True)
             return scene_of(the_task, c), _new_in_context(the_task, task, store_path, method=method, seed=seed,
                                                           context=c, overrides=overrides), (latest and latest.id,)
         method = method or ("CORL+PIBU" if task in BUILTIN_TASKS else DEFAULT_METHOD)

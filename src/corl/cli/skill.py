@@ -67,9 +67,11 @@ def scene_of(the_task, context):
     """The task in ``context`` (its own object when that is its own context): where a run rolls out."""
     import numpy as np
 
+    from corl.contexts.skill import scene_of as checked_scene
+
     if context is None or np.array_equal(np.asarray(context, dtype=float), np.asarray(the_task.context, dtype=float)):
         return the_task
-    return the_task.with_context(np.asarray(context, dtype=float))
+    return checked_scene(the_task, np.asarray(context, dtype=float))
 
 
 def recorded_context(info):

@@ -12,8 +12,8 @@ handle's height). A task gives contexts through :class:`corl.problem.HasContexts
 from corl.contexts.learn import ContextualCORL, StartedTask, contextual_factory, plain_learner
 from corl.contexts.models import ContextData, ContextSlice, ContextualModels, joint_bounds
 from corl.contexts.skill import P_MIN, Anchor, Policy, Skill, context_task
-from corl.contexts.stored import learned, run_context
+from corl.contexts.stored import failed_motions, learned, run_context, snapshot
 
 __all__ = ["ContextualCORL", "StartedTask", "contextual_factory", "plain_learner", "ContextData", "ContextSlice",
            "ContextualModels", "joint_bounds", "P_MIN", "Anchor", "Policy", "Skill", "context_task", "learned",
-           "run_context"]
+           "run_context", "snapshot", "failed_motions"]

@@ -8,9 +8,10 @@ Algorithm 1 runs unchanged in scene ``c`` (``task.with_context(c)``), with two d
   (:class:`~corl.contexts.models.ContextualModels`) and proposes with SEIB at ``c``, keeping its
   safety rules (a safe start first, never a theta without a success probability in the band).
 
-When the start itself fails, the failure joins the data and the next start is tried: the motion
-at the nearest learned context's ``theta*`` (its anchor), then the scene's own demonstration
-when the task gives one that satisfies h there. The learner speaks ask/tell like :class:`CORL`;
+When the start itself fails, the failure joins the data and the next start is tried: the skill's
+policy again, now knowing that failure (a theta at or next to it is never tried again), then the
+scene's own demonstration when the task gives one that satisfies h there. A motion that failed in
+the scene before (in this run or an earlier one, ``failed``) is never proposed again. The learner speaks ask/tell like :class:`CORL`;
 its trials are numbered across starts.
 """
 
@@ -21,11 +22,12 @@ from dataclasses import replace
 import numpy as np
 
 from corl.contexts.models import ContextData, ContextualModels
-from corl.contexts.skill import Skill, context_task
-from corl.errors import DemonstrationFailedError, InputError, StateError
+from corl import checks
+from corl.contexts.skill import Skill, context_task, scene_of
+from corl.errors import CorlError, DemonstrationFailedError, InputError, StateError
 from corl.learner import CORL
 from corl.loop import drive
-from corl.optimizers.base import StopReason
+from corl.optimizers.base import ANSWER_TOLERANCE, StopReason
 from corl.problem import Demonstration, Outcome, Proposal, Task, context_of
 from corl.realise import check_demonstration
 
@@ -113,20 +115,28 @@ class ContextualCORL:
     settings : :class:`corl.settings.MethodSettings` (default: the task's); its CORLConfig
         bounds the run, the GP priors come from its regression and classifier configs.
     seed : seeds the black-box step.
+    failed : motions (n,) known to have failed in this scene (earlier runs there): never proposed again.
+
+    Raises :class:`InputError` when no start can be realised in the scene.
     """
 
-    def __init__(self, task: Task, context, skill: Skill, *, settings=None, seed: int = 0) -> None:
+    def __init__(self, task: Task, context, skill: Skill, *, settings=None, seed: int = 0, failed=()) -> None:
         from corl.methods import settings_for
 
         self.base = context_task(task)
+        if not isinstance(skill, Skill):
+            raise InputError(f"ContextualCORL needs a corl.Skill (Skill.load(store, task)), got {type(skill).__name__}")
+        if skill.task.name != self.base.name:
+            raise InputError(f"the skill was learned for task '{skill.task.name}', not '{self.base.name}'")
         self.skill = skill
         self.context = skill.check_context(context)
-        self.scene = self.base.with_context(self.context)
+        self.scene = scene_of(self.base, self.context)
         self.settings = settings_for(self.scene) if settings is None else settings
         self.config = self.settings.corl
-        self.seed = int(seed)
+        self.seed = checks.integer("ContextualCORL seed", seed, low=0)
         self.history: list[tuple[Proposal, Outcome]] = []
         self.J_history: list[tuple[int, float]] = []
+        self.known_failed = [np.asarray(w, dtype=float) for w in failed]  # this scene's failed motions
         self.starts_tried = 0
         self._starts = self._start_list()
         self._local = ContextData.empty(self.base.theta_bounds.dim, self.base.context_bounds.dim)
@@ -136,27 +146,50 @@ class ContextualCORL:
         self._detail = ""
         self.start_kind = ""
         self.refining = False  # the black-box step refines the skill's start (IN_A_NEW_SCENE)
-        self._next_start()
+        if not self._next_start():
+            raise InputError(f"no start can be realised in context {np.array2string(self.context, precision=4)}: "
+                             "the skill's motion does not reach it and the scene gives no demonstration that "
+                             "satisfies h there; record a demonstration in that scene")
 
     # -- the starts ----------------------------------------------------------------------------
     def _start_list(self):
-        """Lazily: the skill's policy, the nearest anchor's theta*, the scene's own demonstration."""
-        yield "skill", lambda: self.skill.policy(self.context)
+        """Lazily: the skill's policy; after a failed start, the skill's policy again, knowing that
+        failure (g_S moves it away); the scene's own demonstration."""
+        def skill_policy():
+            try:
+                return self.skill.policy(self.context)
+            except InputError:  # out of the skill's reach
+                return None
 
-        def anchor():
-            a = self.skill.nearest(self.context)
-            w, ok = self.skill.motion(self.context, a.theta, a)
-            return Demonstration(w, a.theta) if ok else None
+        yield "skill", skill_policy
 
-        yield "anchor", anchor
+        def knowing():
+            if not len(self._local):
+                return None
+            wiser = Skill(self.base, self.skill.data + self._local, self.skill.anchors, p_min=self.skill.p_min,
+                          solver=self.skill.solver, seed=self.skill.seed)
+            try:
+                return wiser.policy(self.context)
+            except InputError:
+                return None
+
+        yield "skill", knowing
 
         def own():
             try:
                 return check_demonstration(self.scene, tolerance=self.config.demo_tolerance)
-            except (InputError, AttributeError, NotImplementedError):
+            except CorlError:  # no demonstration in that scene, or one that misses h
+                return None
+            except (AttributeError, NotImplementedError):
                 return None
 
         yield "demonstration", own
+
+    def failed_before(self, w) -> bool:
+        """``w`` is within ``eps_w`` of a motion that failed in this scene (this run or an earlier one)."""
+        w = np.asarray(w, dtype=float)
+        fails = self.known_failed + [np.asarray(p.w, dtype=float) for p, o in self.history if not o.success]
+        return any(f.shape == w.shape and np.linalg.norm(w - f) < self.config.eps_w for f in fails)
 
     def _next_start(self) -> bool:
         prior = self.skill.data + self._local
@@ -165,8 +198,11 @@ class ContextualCORL:
             if start is None or not getattr(start, "feasible", True):
                 continue
             demo = Demonstration(np.asarray(start.w, dtype=float), np.asarray(start.theta, dtype=float))
-            if any(np.linalg.norm(demo.w - p.w) < self.config.eps_w for p, o in self.history if not o.success):
+            if self.failed_before(demo.w):
                 continue  # this very motion failed already
+            if any(np.all(np.abs(demo.theta - t) <= ANSWER_TOLERANCE * self.base.theta_bounds.width)
+                   for t in self._local.theta):
+                continue  # (nearly) the theta of a start that just failed
             self.start_kind = name
             self.starts_tried += 1
             self._offset = len(self.history)
@@ -174,6 +210,8 @@ class ContextualCORL:
             self.refining = refine
             factory = contextual_factory(self.base, self.settings, prior, self.context, refine=refine)
             self._inner = CORL(StartedTask(self.scene, demo), factory, self.config, seed=self.seed)
+            self._inner.failed_w.extend(self.known_failed)  # never proposed again (CORL.failed_before)
+            self._inner.failed_w.extend(np.asarray(p.w, dtype=float) for p, o in self.history if not o.success)
             return True
         self._inner = None
         self._end = StopReason.NO_SAFE_POINT

@@ -33,7 +33,7 @@ from corl.problem import Bounds, Task, check_theta, context_of
 from corl.realise import feasible, motion_problem, realise
 from corl.trajectory.solver import SolverConfig, solve
 
-__all__ = ["Anchor", "Policy", "Skill", "P_MIN", "context_task"]
+__all__ = ["Anchor", "Policy", "Skill", "P_MIN", "context_task", "scene_of"]
 
 #: The skill knows a scene when its start there succeeds with at least this probability; then learning
 #: in the scene refines it (:data:`corl.contexts.learn.IN_A_NEW_SCENE`), else it explores as in one scene
@@ -49,13 +49,43 @@ def context_task(task: Task) -> Task:
     return task
 
 
+def scene_of(task: Task, c) -> Task:
+    """``task.with_context(c)``, checked: a task (:func:`corl.problem.check_task`) in context ``c``
+    whose theta box is the task's (theta keeps its meaning); else one :class:`InputError`."""
+    from corl.errors import CorlError
+    from corl.problem import check_task
+
+    name = getattr(task, "name", "?")
+    c = np.asarray(c, dtype=float)
+    try:
+        scene = task.with_context(c)
+    except CorlError:
+        raise
+    except Exception as exc:  # the task's own code
+        raise InputError(f"task '{name}': with_context({c.tolist()}) raised {type(exc).__name__}: {exc}; fix the "
+                         "task (call it in Python to see the traceback)") from None
+    where = f"task '{name}': with_context({c.tolist()})"
+    if scene is None:
+        raise InputError(f"{where} returned None; it must return the task in that scene (corl.problem.HasContexts)")
+    check_task(scene, where)
+    got = context_of(scene)
+    if got is None or got.shape != c.shape or not np.allclose(got, c, rtol=0.0, atol=1e-12 * (1.0 + np.abs(c).max())):
+        raise InputError(f"{where} returned a task in context {None if got is None else got.tolist()}; its context "
+                         "must be the one asked for (corl.problem.HasContexts)")
+    if not (np.array_equal(scene.theta_bounds.lower, task.theta_bounds.lower)
+            and np.array_equal(scene.theta_bounds.upper, task.theta_bounds.upper)):
+        raise InputError(f"{where} changed theta_bounds; theta keeps its meaning and its box across contexts")
+    return scene
+
+
 @dataclass(frozen=True, eq=False)
 class Policy:
     """What :meth:`Skill.policy` proposes for ``context``.
 
     ``w`` (n,) the motion, ``theta`` (m,) what it realises; ``p_success`` g_S's success probability
     there; ``R_mean``, ``R_std`` g_R's posterior; ``J`` the analytic cost; ``nearest`` the anchor
-    context its motion was realised from; ``feasible``: ``h(w, theta) = 0`` holds in this scene.
+    context its motion was realised from; ``feasible``: ``h(w, theta) = 0`` holds in this scene
+    (always: :meth:`Skill.policy` refuses a scene where no motion realises its theta).
     """
 
     context: np.ndarray
@@ -89,14 +119,27 @@ class Skill:
         self.task = context_task(task)
         self.context_bounds: Bounds = task.context_bounds
         self.theta_bounds: Bounds = task.theta_bounds
+        m, k = self.theta_bounds.dim, self.context_bounds.dim
+        if not isinstance(data, ContextData) or data.theta.shape[1] != m or data.context.shape[1] != k:
+            raise InputError(f"a skill's data must be a ContextData with {m} theta and {k} context columns for task "
+                             f"'{task.name}'")
         if not anchors:
             raise InputError("a skill needs at least one learned context: run corl in one context first "
                              "(corl run TASK --context ...)")
+        sizes = set()
+        for a in anchors:
+            if not isinstance(a, Anchor) or np.shape(a.theta) != (m,) or np.shape(a.context) != (k,) \
+                    or np.ndim(a.w) != 1 or not self.context_bounds.contains(a.context):
+                raise InputError(f"a skill's anchors must be Anchors with theta ({m},), a context ({k},) inside the box "
+                                 f"and a motion w (n,) for task '{task.name}'")
+            sizes.add(np.size(a.w))
+        if len(sizes) > 1:
+            raise InputError(f"a skill's anchors have motions of {sorted(sizes)} parameters; one task has one size")
         p_min = checks.number("Skill p_min", p_min, low=0.0, low_open=True)
         if not p_min < 1.0:
             raise InputError(f"Skill p_min is a probability in (0, 1), got {p_min!r}")
         self.data, self.anchors, self.p_min, self.solver = data, list(anchors), float(p_min), solver
-        self.seed = int(seed)
+        self.seed = checks.integer("Skill seed", seed, low=0)
 
     # -- the models ----------------------------------------------------------------------------
     @cached_property
@@ -179,7 +222,9 @@ class Skill:
         c = self.check_context(c)
         theta = check_theta(theta, self.theta_bounds, task=self.task.name)
         anchor = self.nearest(c) if anchor is None else anchor
-        scene = self.task.with_context(c)
+        scene = scene_of(self.task, c)
+        if np.array_equal(anchor.context, c) and np.array_equal(anchor.theta, theta):
+            return anchor.w.copy(), True  # a learned scene at its theta*: the motion that ran there
         done = realise(scene, anchor.w, anchor.theta, theta, self.solver)
         if not done.feasible:
             return done.w, False
@@ -189,7 +234,10 @@ class Skill:
         return done.w, True
 
     def policy(self, c) -> Policy:
-        """The motion to execute in context ``c``, its theta and how sure the skill is (no trial)."""
+        """The motion to execute in context ``c``, its theta and how sure the skill is (no trial).
+
+        Refuses (:class:`InputError`) a context outside the box and a scene where neither the chosen
+        theta nor the nearest anchor's can be realised from the anchor's motion (Eq. 18)."""
         c = self.check_context(c)
         anchor = self.nearest(c)
         theta = self.choose_theta(c)
@@ -197,8 +245,12 @@ class Skill:
         if not ok:  # Eq. 18 cannot reach this theta from the anchor: the anchor's own theta
             theta = anchor.theta.copy()
             w, ok = self.motion(c, theta, anchor)
+        if not ok:
+            raise InputError(f"no motion realises theta {np.array2string(theta, precision=4)} in context "
+                             f"{np.array2string(c, precision=4)} from the nearest learned scene's (Eq. 18 stays "
+                             "infeasible): the scene is out of the skill's reach; learn it from its own demonstration")
         p, mu, sd = self.predict(theta[None], c)
-        return Policy(c, w, theta, float(p[0]), float(mu[0]), float(sd[0]), _cost(self.task.with_context(c), w),
+        return Policy(c, w, theta, float(p[0]), float(mu[0]), float(sd[0]), _cost(scene_of(self.task, c), w),
                       anchor.context.copy(), ok)
 
     # -- from a store --------------------------------------------------------------------------
