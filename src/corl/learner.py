@@ -159,6 +159,7 @@ class CORL:
         self._pending: Proposal | None = None
         self._asked = False  # the pending trial was handed out by ask(): only then may tell() answer it
         self._finished = False
+        self.start_step = "demonstration"  # the step name of trial 0 ("skill" when a skill's policy starts it)
         self._gen: Generator[Proposal, Outcome, None] = self._algorithm()
 
     # -- ask / tell ----------------------------------------------------------------------------
@@ -236,7 +237,7 @@ class CORL:
     def _algorithm(self) -> Iterator[Proposal]:
         task, cfg = self.task, self.config
         w0, theta0 = self._demonstration.w, self._demonstration.theta  # checked in __init__
-        outcome = yield self._proposal(w0, theta0, "demonstration")
+        outcome = yield self._proposal(w0, theta0, self.start_step)
         if not outcome.success:
             self._end = StopReason.NO_SAFE_POINT
             raise DemonstrationFailedError(

@@ -153,7 +153,8 @@ class Proposal:
     w : (n,) trajectory parameters to execute.
     theta : (m,) interaction parameters ``w`` realises (``h(w, theta) = 0``).
     step : which part of Alg. 1 proposed it: "demonstration", "optimization", "phase",
-        "reinforcement" (CORL); "search" for a black-box method over ``w``.
+        "reinforcement" (CORL); "skill" for the start of a run in a new context that a skill
+        proposed (:mod:`corl.contexts`); "search" for a black-box method over ``w``.
     round : outer iteration of Alg. 1 (0-based).
     """
 

@@ -210,6 +210,7 @@ class ContextualCORL:
             self.refining = refine
             factory = contextual_factory(self.base, self.settings, prior, self.context, refine=refine)
             self._inner = CORL(StartedTask(self.scene, demo), factory, self.config, seed=self.seed)
+            self._inner.start_step = name  # "skill" or "demonstration": what the robot is asked to run
             self._inner.failed_w.extend(self.known_failed)  # never proposed again (CORL.failed_before)
             self._inner.failed_w.extend(np.asarray(p.w, dtype=float) for p, o in self.history if not o.success)
             return True

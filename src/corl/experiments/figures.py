@@ -18,7 +18,7 @@ import numpy as np
 
 __all__ = ["plot_learning_curve", "plot_return_map", "plot_trials", "plot_trial_curves", "plot_sweep"]
 
-_MOTION_STEPS = ("demonstration", "optimization", "phase")
+_MOTION_STEPS = ("demonstration", "skill", "optimization", "phase")
 
 
 def _pyplot():
