@@ -25,7 +25,7 @@ from corl.contexts.models import ContextData, ContextualModels
 from corl import checks
 from corl.contexts.skill import Skill, context_task, scene_of
 from corl.errors import CorlError, DemonstrationFailedError, InputError, StateError
-from corl.learner import CORL
+from corl.learner import CORL, cost_of
 from corl.loop import drive
 from corl.optimizers.base import ANSWER_TOLERANCE, StopReason
 from corl.problem import Demonstration, Outcome, Proposal, Task, context_of
@@ -243,8 +243,7 @@ class ContextualCORL:
     def _record(self, proposal: Proposal, outcome: Outcome) -> None:
         proposal = replace(proposal, index=proposal.index + self._offset)
         self.history.append((proposal, outcome))
-        r, _ = self.scene.cost_residuals(proposal.w)
-        self.J_history.append((proposal.index, float(np.dot(r, r))))
+        self.J_history.append((proposal.index, cost_of(self.scene, proposal.w)))
 
     def run(self, task: Task | None = None, *, max_trials: int | None = None, callback=None):
         drive(self, task or self.scene, max_trials=max_trials, callback=callback)

@@ -191,7 +191,6 @@ class ContextualModels:
         self.regression_priors, self.classifier_priors = regression_priors, classifier_priors
         self.prior_mean = prior_mean
         self._warm: dict[str, np.ndarray | None] = {"regression": None, "classifier": None}
-        self._last_classifier = None
         self.fallback: dict[str, str] = {}
         self.last_regression = self.last_classifier = None  # the joint models of the latest fits
 
@@ -204,36 +203,33 @@ class ContextualModels:
         here = np.hstack([X, np.broadcast_to(self.context, (len(X), self.k))])
         return np.vstack([np.hstack([extra_theta, extra_context]), here])
 
+    def _fit(self, kind: str, fit, **kw):
+        """One MAP fit of ``kind`` ("regression" / "classifier") over the joint box, warm-started from
+        the last one; the joint model is kept as ``last_<kind>``."""
+        priors = self.regression_priors if kind == "regression" else self.classifier_priors
+        res = fit(bounds=self.bounds, priors=priors, warm=self._warm[kind],
+                  lengthscale_priors=joint_lengthscale_priors(priors.lengthscale, self.m, self.k), **kw)
+        if not res.fallback:
+            self._warm[kind] = res.log_params
+        self.fallback[kind] = res.fallback
+        setattr(self, f"last_{kind}", res.model)
+        return res.model
+
     def regression(self, X, y):
         """g_R on this context's successes ``X`` (d, m), ``y`` (d,) and every other success."""
         p = self.prior
         ok = p.success & np.isfinite(p.returns)
-        Xj = self._joint(X, p.theta[ok], p.context[ok])
         yj = np.concatenate([p.returns[ok], np.asarray(y, dtype=float)])
         if len(yj) == 0:
             return None
-        res = fit_regression(Xj, yj, self.bounds, self.regression_priors, warm=self._warm["regression"],
-                             lengthscale_priors=joint_lengthscale_priors(self.regression_priors.lengthscale,
-                                                                         self.m, self.k))
-        if not res.fallback:
-            self._warm["regression"] = res.log_params
-        self.fallback["regression"] = res.fallback
-        self.last_regression = res.model
-        return ContextSlice(res.model, self.context, self.m, X, y)
+        model = self._fit("regression", fit_regression, X=self._joint(X, p.theta[ok], p.context[ok]), y=yj)
+        return ContextSlice(model, self.context, self.m, X, y)
 
     def classifier(self, X, s):
         """g_S on this context's points ``X`` (d, m), outcomes ``s`` (d,), and every other trial."""
         p = self.prior
-        Xj = self._joint(X, p.theta, p.context)
         sj = np.concatenate([p.success, np.asarray(s, dtype=bool)])
-        res = fit_classifier(Xj, sj, self.bounds, self.prior_mean, self.classifier_priors,
-                             warm=self._warm["classifier"], previous=self._last_classifier,
-                             lengthscale_priors=joint_lengthscale_priors(self.classifier_priors.lengthscale,
-                                                                         self.m, self.k))
-        if not res.fallback:
-            self._warm["classifier"] = res.log_params
-        self.fallback["classifier"] = res.fallback
-        self._last_classifier = res.model
-        self.last_classifier = res.model
+        model = self._fit("classifier", fit_classifier, X=self._joint(X, p.theta, p.context), s=sj,
+                          prior_mean=self.prior_mean, previous=self.last_classifier)
         labels = np.where(np.asarray(s, dtype=bool), 1.0, -1.0)
-        return ContextSlice(res.model, self.context, self.m, X, labels)
+        return ContextSlice(model, self.context, self.m, X, labels)

@@ -26,10 +26,10 @@ from functools import cached_property
 import numpy as np
 
 from corl import checks
-from corl.contexts.models import Anchor, ContextData, joint_bounds, joint_lengthscale_priors
+from corl.contexts.models import Anchor, ContextData, ContextualModels
 from corl.errors import InputError
-from corl.gp.fitting import ClassifierPriors, RegressionPriors, fit_classifier, fit_regression
 from corl.problem import Bounds, Task, check_theta, context_of
+from corl.learner import cost_of
 from corl.realise import feasible, motion_problem, realise
 from corl.trajectory.solver import SolverConfig, solve
 
@@ -143,24 +143,14 @@ class Skill:
 
     # -- the models ----------------------------------------------------------------------------
     @cached_property
-    def _joint(self) -> Bounds:
-        return joint_bounds(self.theta_bounds, self.context_bounds)
-
-    @cached_property
     def models(self):
-        """g_R (on successes) and g_S (on every trial) over ``(theta, c)``, fitted once."""
-        d = self.data
-        X = np.hstack([d.theta, d.context])
-        ok = d.success & np.isfinite(d.returns)
-        m, k = self.theta_bounds.dim, self.context_bounds.dim
-        rp, cp = RegressionPriors(), ClassifierPriors()
-        regression = None
-        if np.any(ok):
-            regression = fit_regression(X[ok], d.returns[ok], self._joint, rp,
-                                        lengthscale_priors=joint_lengthscale_priors(rp.lengthscale, m, k)).model
-        classifier = fit_classifier(X, d.success, self._joint, -7.0, cp,
-                                    lengthscale_priors=joint_lengthscale_priors(cp.lengthscale, m, k)).model
-        return regression, classifier
+        """g_R (on successes) and g_S (on every trial) over ``(theta, c)``, fitted once, as a contextual
+        run fits them (:class:`~corl.contexts.models.ContextualModels`, every trial a prior one)."""
+        empty = np.empty((0, self.theta_bounds.dim))
+        fits = ContextualModels(self.theta_bounds, self.context_bounds, self.data, self.anchors[0].context)
+        regression = fits.regression(empty, np.empty(0))
+        fits.classifier(empty, np.empty(0, dtype=bool))
+        return (None if regression is None else fits.last_regression), fits.last_classifier
 
     def check_context(self, c) -> np.ndarray:
         """``c`` as a point (k,) of the context box, or one :class:`InputError` naming the box."""
@@ -229,7 +219,7 @@ class Skill:
         if not done.feasible:
             return done.w, False
         result = solve(motion_problem(scene, theta), done.w, config=self.solver)
-        if feasible(result, self.solver) and _cost(scene, result.w) <= _cost(scene, done.w):
+        if feasible(result, self.solver) and cost_of(scene, result.w) <= cost_of(scene, done.w):
             return result.w, True
         return done.w, True
 
@@ -250,7 +240,7 @@ class Skill:
                              f"{np.array2string(c, precision=4)} from the nearest learned scene's (Eq. 18 stays "
                              "infeasible): the scene is out of the skill's reach; learn it from its own demonstration")
         p, mu, sd = self.predict(theta[None], c)
-        return Policy(c, w, theta, float(p[0]), float(mu[0]), float(sd[0]), _cost(scene_of(self.task, c), w),
+        return Policy(c, w, theta, float(p[0]), float(mu[0]), float(sd[0]), cost_of(scene_of(self.task, c), w),
                       anchor.context.copy(), ok)
 
     # -- from a store --------------------------------------------------------------------------
@@ -266,8 +256,3 @@ class Skill:
     def __repr__(self) -> str:
         return (f"Skill(task={self.task.name!r}, contexts={len(self.anchors)}, trials={len(self.data)}, "
                 f"p_min={self.p_min})")
-
-
-def _cost(task: Task, w: np.ndarray) -> float:
-    r, _ = task.cost_residuals(w)
-    return float(np.dot(r, r))

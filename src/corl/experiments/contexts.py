@@ -23,6 +23,7 @@ parallel workers, each reading the training store.
 from __future__ import annotations
 
 import time
+from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -87,7 +88,7 @@ def train(spec: str, seed: int, contexts: np.ndarray, store: Path, progress=None
     for i, c in enumerate(contexts):
         t0 = time.perf_counter()
         existing = _stored_runs(store)
-        with RunStore(store, create=False, readonly=True) if existing else _Nothing() as ro:
+        with RunStore(store, create=False, readonly=True) if existing else nullcontext() as ro:
             if i < len(existing):
                 info = existing[i]
                 recorded = info.config.get("context")
@@ -105,16 +106,6 @@ def train(spec: str, seed: int, contexts: np.ndarray, store: Path, progress=None
         if progress is not None:
             progress("train", i + 1, len(contexts), rows[-1])
     return rows
-
-
-class _Nothing:
-    """``with`` on no store: yields None."""
-
-    def __enter__(self):
-        return None
-
-    def __exit__(self, *exc):
-        return False
 
 
 def _grid(dim: int) -> tuple[int, ...]:
