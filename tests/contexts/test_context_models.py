@@ -21,7 +21,7 @@ def test_the_joint_kernel_is_the_product_of_a_theta_kernel_and_a_context_kernel(
     joint = SquaredExponential(np.concatenate([lt, lc]), sf)(X, Y)
     k_theta = SquaredExponential(lt, sf)(X[:, :1], Y[:, :1])
     k_context = SquaredExponential(lc, 1.0)(X[:, 1:], Y[:, 1:])
-    np.testing.assert_allclose(joint, k_theta * k_context, rtol=1e-12, atol=1e-12 * sf ** 2)
+    np.testing.assert_allclose(joint, k_theta * k_context, rtol=1e-10, atol=1e-12 * sf ** 2)
 
 
 def _data(rng, d=40):
@@ -45,8 +45,8 @@ def test_a_slice_predicts_what_the_joint_model_predicts_at_its_context():
     J = np.hstack([T, np.tile(c, (7, 1))])
     for got, want in ((reg.predict(T), models.last_regression.predict(J)),
                       (clf.predict_latent(T), models.last_classifier.predict_latent(J))):
-        np.testing.assert_allclose(got[0], want[0], rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(got[1], want[1], rtol=1e-12, atol=1e-12)
+        for a, b in zip(got, want):  # same inputs, same model: equal up to rounding of their scale
+            np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9 * (1.0 + np.abs(b).max()))
     # the acquisitions read theta's length scales and this context's rows only
     assert reg.kernel.lengthscales.shape == (1,) and reg.kernel.context_lengthscales.shape == (2,)
     np.testing.assert_array_equal(clf.X_, np.vstack([X, [[1.9]]]))
@@ -54,7 +54,8 @@ def test_a_slice_predicts_what_the_joint_model_predicts_at_its_context():
     # the joint fit used every trial: this context's and the prior's
     assert len(models.last_classifier.X_) == len(prior) + 3
     axes = [np.linspace(-1, 2, 4)]
-    np.testing.assert_allclose(clf.latent_mean_on_lattice(axes), clf.predict_latent(axes[0][:, None])[0], rtol=1e-12)
+    want = clf.predict_latent(axes[0][:, None])[0]
+    np.testing.assert_allclose(clf.latent_mean_on_lattice(axes), want, rtol=1e-9, atol=1e-9 * (1.0 + np.abs(want).max()))
 
 
 @pytest.mark.parametrize("true_lc", [0.15, 0.6])

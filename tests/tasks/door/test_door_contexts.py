@@ -64,7 +64,7 @@ def test_with_context_moves_the_door_and_keeps_the_layout(base):
     assert (task.force_noise, task.seed) == (base.force_noise, base.seed)
     np.testing.assert_array_equal(task.contact_times, base.contact_times)
     scene = task.scene
-    np.testing.assert_allclose(scene.pivot_world, base.scene.pivot_world + [c[1], c[2], c[0]], atol=1e-12)
+    np.testing.assert_allclose(scene.pivot_world, base.scene.pivot_world + [c[1], c[2], c[0]], atol=1e-9)  # m: far below anything a robot resolves
     # the analytic geometry (handle_point, door_point, along_lever) is the compiled model's
     data = mujoco.MjData(scene.model)
     for phi, alpha in ((0.0, 0.0), (0.3, 0.5)):
@@ -75,7 +75,7 @@ def test_with_context_moves_the_door_and_keeps_the_layout(base):
         for r in (0.0, 0.05, 0.1):
             bar = data.xpos[scene.handle_body] + frame @ [-scene.geometry.standoff, -r, 0.0]
             np.testing.assert_allclose(scene.handle_point(r, phi, alpha), bar, atol=1e-9)
-    assert scene.along_lever(scene.handle_point(0.07)) == pytest.approx(0.07, abs=1e-12)
+    assert scene.along_lever(scene.handle_point(0.07)) == pytest.approx(0.07, abs=1e-9)
     demo = base.demonstration()
     h_base, h_moved = base.constraint(demo.w, demo.theta)[0], task.constraint(demo.w, demo.theta)[0]
     assert h_moved.shape == h_base.shape and np.abs(h_moved).max() > 0.01  # the door moved away from w0
