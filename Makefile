@@ -20,7 +20,7 @@ $(STAMP): pyproject.toml constraints.txt
 	touch $(STAMP)
 
 demo: $(STAMP)
-	MUJOCO_GL=egl $(VENV)/bin/corl run door --seed 0 --out results/door
+	MUJOCO_GL=egl $(VENV)/bin/corl run door --seed 0 --out results/door --video
 
 # `make test` installs headless Chromium for the browser test of `corl report` (when root with apt-get).
 test: $(STAMP)

@@ -32,16 +32,18 @@ def run(
                                                      "numbers, e.g. 0.02,-0.01,0,0.1; a new run in the store that "
                                                      "starts from what its runs in other contexts learned"),
     quiet: bool = QUIET, json_out: bool = JSON_OUT, log: bool = LOG,
-    video: bool = typer.Option(True, "--video/--no-video", help="render demonstration vs learned motion"),
+    video: bool = typer.Option(False, "--video/--no-video", help="after learning, render the demonstration beside "
+                                                                  "the learned motion (tasks that render)"),
     rollout_every_step: Optional[bool] = typer.Option(
         None, "--rollout-every-step/--no-rollout-every-step",
         help="roll out every motion-optimization step (default: the task's CORLConfig), or only the converged one"),
 ) -> None:
-    """One learning run, every trial committed to the store; writes OUT/summary.json, figures, video."""
+    """One learning run, every trial committed to the store; writes OUT/summary.json, figures (and with --video
+    a video, rendered once after the store is closed: learning never waits for it)."""
     import time
 
     from corl.errors import CorlError
-    from corl.experiments.run_output import run_summary, run_text, task_extras, write_run_artifacts
+    from corl.experiments.run_output import run_summary, run_text, task_extras, write_run_artifacts, write_run_video
     from corl.methods import METHODS
 
     store_path = store or out / "run.corl"
@@ -94,8 +96,14 @@ def run(
             payload["store"] = str(store_path)
             payload["run_id"] = session.run_id
             payload.update(task_extras(the_task, session.learner))
-            tracker.message("writing figures and video ..." if video else "writing figures ...")
-            payload["files"] = write_run_artifacts(the_task, session.learner, out, video=video)
+            tracker.message("writing figures ...")
+            payload["files"] = write_run_artifacts(the_task, session.learner, out, video=False)
+    if video:  # after the store is closed: the run is safe on disk whatever rendering does
+        if not quiet and not json_out:
+            typer.echo("rendering the video ...", err=True)
+        payload["files"].update(write_run_video(the_task, session.learner, out))
+    elif hasattr(the_task, "render_comparison"):
+        payload["files"]["video_skipped"] = "not asked for; add --video (or render it later: corl report --video)"
     write_json(out / "summary.json", payload)
     if json_out:
         return print_json(payload)

@@ -15,7 +15,7 @@ import numpy as np
 from corl.experiments.figures import plot_learning_curve, plot_return_map
 from corl.mujoco.video import RENDERING_HINT
 
-__all__ = ["run_summary", "task_extras", "run_text", "write_run_artifacts"]
+__all__ = ["run_summary", "task_extras", "run_text", "write_run_artifacts", "write_run_video"]
 
 
 def run_summary(task, method: str, seed: int, learner, seconds: float, *, context=None,
@@ -104,10 +104,18 @@ def write_run_artifacts(task, learner, out: Path, *, video: bool = True) -> dict
     if getattr(learner, "optimizers", None) and task.theta_bounds.dim <= 2:
         labels = getattr(task, "theta_labels", ("theta 1", "theta 2"))
         files["return_map"] = str(plot_return_map(learner, out / "return_map.png", labels=labels))
-    render = getattr(task, "render_comparison", None)
-    if video and render is not None and learner.best is not None and learner.history:
-        try:
-            files["video"] = str(render(learner.history[0][0].w, learner.best.w, out / "demo_vs_learned.mp4"))
-        except Exception as exc:  # no OpenGL on this machine: the run's results stand without it
-            files["video_skipped"] = f"{type(exc).__name__}: {exc}. {RENDERING_HINT}"
+    if video:
+        files.update(write_run_video(task, learner, out))
     return files
+
+
+def write_run_video(task, learner, out: Path) -> dict[str, str]:
+    """For a task with ``render_comparison``: ``{"video": path}`` of the demonstration beside the best
+    motion, ``{"video_skipped": why}`` when this machine cannot render, ``{}`` for other tasks."""
+    render = getattr(task, "render_comparison", None)
+    if render is None or learner.best is None or not learner.history:
+        return {}
+    try:
+        return {"video": str(render(learner.history[0][0].w, learner.best.w, Path(out) / "demo_vs_learned.mp4"))}
+    except Exception as exc:  # no OpenGL on this machine: the run's results stand without it
+        return {"video_skipped": f"{type(exc).__name__}: {exc}. {RENDERING_HINT}"}

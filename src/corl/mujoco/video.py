@@ -30,6 +30,17 @@ __all__ = ["Camera", "FrameRecorder", "caption", "write_side_by_side", "renderin
 #: What to do when no offscreen OpenGL context can be made (said wherever a video is skipped).
 RENDERING_HINT = "Offscreen rendering needs EGL or OSMesa (Debian: libegl1 libgl1); set MUJOCO_GL=egl or osmesa"
 
+#: Shadow-map size (pixels) of the kit's renderers. MuJoCo's default, 4096, is what a CPU renderer
+#: (Mesa's llvmpipe under EGL) spends most of a frame on: the door's 480x360 frame took 95 ms at
+#: 4096 and 13 ms at 1024, with no difference visible at that resolution.
+SHADOW_SIZE = 1024
+#: Multisampling of the offscreen buffer (MuJoCo's default is 4): 2x the cost of a frame on a CPU
+#: renderer, for smoother edges. 0 keeps videos fast; pass ``samples=4`` for a figure.
+SAMPLES = 0
+#: ffmpeg's x264 preset: "veryfast" encodes the door's side-by-side video in 0.3 s against 0.7 s at
+#: the default ("medium"), about 10 % larger.
+X264_PRESET = "veryfast"
+
 
 @dataclass(frozen=True)
 class Camera:
@@ -59,8 +70,13 @@ def _quiet_half_made_renderer(hook):
     return quiet
 
 
-def make_renderer(model, *, height: int, width: int):
+def make_renderer(model, *, height: int, width: int, shadow_size: int | None = SHADOW_SIZE,
+                  samples: int | None = SAMPLES):
     """``mujoco.Renderer(model, height, width)``, or the reason it cannot be made, quietly.
+
+    ``shadow_size`` and ``samples`` (None: the model's own ``<visual><quality shadowsize offsamples>``)
+    set the renderer's shadow map and multisampling; the model is left as it was (MuJoCo reads
+    both once, when the renderer's context is made).
 
     Without a display and without ``MUJOCO_GL``, MuJoCo tries GLFW: GLFW warns (``GLFWError``),
     ``Renderer`` raises, and the half-made renderer's ``__del__`` prints a traceback when it is
@@ -83,7 +99,13 @@ def make_renderer(model, *, height: int, width: int):
     kind = message = None
     hook = sys.unraisablehook
     sys.unraisablehook = _quiet_half_made_renderer(hook)
+    quality = model.vis.quality
+    kept = (int(quality.shadowsize), int(quality.offsamples))
     try:
+        if shadow_size is not None:
+            quality.shadowsize = int(shadow_size)
+        if samples is not None:
+            quality.offsamples = int(samples)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             try:
@@ -93,6 +115,7 @@ def make_renderer(model, *, height: int, width: int):
         gc.collect()  # the half-made renderer goes now, while its __del__'s error is dropped
     finally:
         sys.unraisablehook = hook
+        quality.shadowsize, quality.offsamples = kept
     if not issubclass(kind, (ValueError, TypeError)):  # an argument error never made an OpenGL context
         _RENDER_FAILED = (kind, message)
     raise _error(kind, message)
@@ -129,10 +152,12 @@ class FrameRecorder:
     camera : Camera
     fps : frames per second of simulated time
     width, height : pixels
+    shadow_size, samples : the renderer's shadow map and multisampling (:func:`make_renderer`)
     """
 
-    def __init__(self, model, camera: Camera, *, fps: int = 25, width: int = 480, height: int = 360) -> None:
-        self.renderer = make_renderer(model, height=height, width=width)
+    def __init__(self, model, camera: Camera, *, fps: int = 25, width: int = 480, height: int = 360,
+                 shadow_size: int | None = SHADOW_SIZE, samples: int | None = SAMPLES) -> None:
+        self.renderer = make_renderer(model, height=height, width=width, shadow_size=shadow_size, samples=samples)
         self.camera = camera.mjv()
         self.every = max(1, int(round(1.0 / (fps * model.opt.timestep))))
         self.frames: list[np.ndarray] = []
@@ -179,20 +204,26 @@ def caption(frames: np.ndarray, text: str) -> np.ndarray:
 
 
 def write_side_by_side(path: str | os.PathLike, left: np.ndarray, right: np.ndarray, fps: int = 25) -> Path:
-    """Write two frame stacks (F, H, W, 3) next to each other; MP4 when ffmpeg is there, else GIF."""
+    """Write two frame stacks (F, H, W, 3) next to each other; MP4 when ffmpeg is there, else GIF.
+
+    The shorter stack holds its last frame. Frames go to the encoder one by one (no copy of the
+    whole video in memory).
+    """
     import imageio.v2 as imageio
 
     n = max(len(left), len(right))
 
-    def pad(f):
-        return np.concatenate([f, np.repeat(f[-1:], n - len(f), axis=0)]) if len(f) < n else f
+    def frames():
+        for i in range(n):
+            yield np.concatenate([left[min(i, len(left) - 1)], right[min(i, len(right) - 1)]], axis=1)
 
-    both = np.concatenate([pad(left), pad(right)], axis=2)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     try:
-        imageio.mimwrite(path, list(both), fps=fps, macro_block_size=8)
+        with imageio.get_writer(path, fps=fps, macro_block_size=8, ffmpeg_params=["-preset", X264_PRESET]) as out:
+            for frame in frames():
+                out.append_data(frame)
     except Exception:
         path = path.with_suffix(".gif")
-        imageio.mimwrite(path, list(both), duration=1.0 / fps)
+        imageio.mimwrite(path, list(frames()), duration=1.0 / fps)
     return path
