@@ -152,6 +152,8 @@ class PDController:
         self.actuators = np.array(ids, dtype=int)
         # all actuators in q's order: write data.ctrl whole (cheaper than an index)
         self._whole = bool(len(ids) == robot.model.nu and np.array_equal(ids, np.arange(len(ids))))
+        self._ctrl_slice = _as_slice(self.actuators, ordered=True)
+        self._comp_slice = _as_slice(self._comp_dofs, ordered=False)
 
     def setpoints(self, q_ref: np.ndarray, dq_ref: np.ndarray) -> np.ndarray:
         """Servo set-points u (N, J [+1]) for a reference (N, Q): joint lead, gripper angle."""
@@ -173,10 +175,33 @@ class PDController:
         """Cancel gravity and Coriolis forces on the robot's dofs (``qfrc_applied = qfrc_bias``)."""
         data.qfrc_applied[self._comp_dofs] = data.qfrc_bias[self._comp_dofs]
 
+    def _views(self, data) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """Views ``(ctrl, qfrc_applied, qfrc_bias)`` of ``data`` such that ``ctrl[:] = u_k`` is
+        :meth:`apply` and ``applied[:] = bias`` is :meth:`compensate`, or None when a subclass
+        overrides either or the actuators or dofs are not a contiguous range."""
+        own = all(getattr(type(self), name) is getattr(PDController, name) and name not in vars(self)
+                  for name in ("apply", "compensate"))
+        if not own or self._ctrl_slice is None or self._comp_slice is None:
+            return None
+        comp = self._comp_slice
+        return data.ctrl[self._ctrl_slice], data.qfrc_applied[comp], data.qfrc_bias[comp]
+
     def initialise(self, data, q0: np.ndarray) -> None:
         """Put the robot at ``q0`` (Q,), at rest."""
         self.robot.write(data, q0)
         data.qvel[:] = 0.0
+
+
+def _as_slice(ids: np.ndarray, ordered: bool) -> slice | None:
+    """``ids`` (n,) as the slice of the same entries, or None. ``ordered``: ``ids`` must run up one
+    by one (it pairs values to entries); otherwise the same set of entries will do (an entry
+    copied onto itself, e.g. ``qfrc_applied[dofs] = qfrc_bias[dofs]``, ignores the order)."""
+    ids = np.asarray(ids, dtype=int)
+    if ids.size == 0:
+        return None
+    run = np.arange(ids.min(), ids.min() + ids.size)
+    same = np.array_equal(ids, run) if ordered else np.array_equal(np.unique(ids), run)
+    return slice(int(run[0]), int(run[-1]) + 1) if same else None
 
 
 def track(robot: Robot, controller: PDController, reference, duration: float, *, data=None,
@@ -184,7 +209,11 @@ def track(robot: Robot, controller: PDController, reference, duration: float, *,
     """Simulate tracking ``reference`` from rest at its first configuration.
 
     Each control step (the simulation step) sets the set-points, cancels gravity, steps, and calls
-    ``on_step(k, data)`` (also at k = 0, before the first step).
+    ``on_step(k, data)`` (also at k = 0, before the first step). A :class:`PDController` whose
+    actuators and dofs are contiguous ranges is not called each step: its writes go through views of
+    ``data`` bound once (the same values); a subclass that overrides ``apply`` or ``compensate`` is.
+    ``on_step`` runs 2500 times in a 5 s trial at 500 Hz: bind what it reads (``qpos = data.qpos``)
+    outside it, copy into preallocated arrays, and leave what can wait until after the trial.
 
     Parameters
     ----------
@@ -217,11 +246,25 @@ def track(robot: Robot, controller: PDController, reference, duration: float, *,
     mujoco.mj_forward(model, data)
     controller.compensate(data)  # so the first logged sensor reading already sees a supported arm
     mujoco.mj_forward(model, data)
-    for k in range(len(q_ref)):
-        if k > 0:
+    views = controller._views(data) if isinstance(controller, PDController) else None
+    if on_step is not None:
+        on_step(0, data)
+    if views is None:  # a controller that writes its own way: call it each step
+        for k in range(1, len(q_ref)):
             controller.apply(data, u[k])
             controller.compensate(data)
             mujoco.mj_step(model, data)
+            if on_step is not None:
+                on_step(k, data)
+        return data, q_ref
+    # The same writes as apply and compensate, through views bound once: about 0.4 us a step
+    # besides mj_step (10-15 us on the door), where the method calls and fancy indexing cost 4 us.
+    ctrl, applied, bias = views
+    step = mujoco.mj_step
+    for k in range(1, len(q_ref)):
+        ctrl[:] = u[k]
+        applied[:] = bias
+        step(model, data)
         if on_step is not None:
             on_step(k, data)
     return data, q_ref
