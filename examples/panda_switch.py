@@ -31,10 +31,10 @@ from functools import cached_property, lru_cache
 
 import numpy as np
 
-from corl.mujoco import (Camera, FrameRecorder, Gripper, Kinematics, PDController, Robot, Target,
-                         add_joint_equality, add_servos, caption, contact_force, coordinate_feature, example_robot_dir, fit_demonstration,
+from corl.mujoco import (Camera, ContactPairs, FrameRecorder, Gripper, Kinematics, PDController, Robot, Target,
+                         add_joint_equality, add_servos, caption, coordinate_feature, example_robot_dir, fit_demonstration,
                          orientation_feature, position_feature, project_demonstration,
-                         solve_waypoints, stack, touching, track, urdf_to_mjcf, write_side_by_side)
+                         solve_waypoints, stack, track, urdf_to_mjcf, write_side_by_side)
 from corl.mujoco.parse import parse_mjcf
 from corl.problem import Bounds, Demonstration, Outcome, check_theta
 from corl.trajectory import BSpline, TaskSpaceFeature, TrajectoryProblem, acceleration_feature, configuration_feature
@@ -249,6 +249,7 @@ class PandaSwitchTask:
         paddle = [self.robot.id("geom", "paddle")]
         paddle_body = self.robot.id("body", "paddle")
         sites = list(self.tips.ids)
+        pairs = ContactPairs(model, paddle, tips)  # tables built once, for the check every 5 steps
         log = {"angle": [], "force": [], "touch": [], "along": [], "gap": []}
 
         def step(k, data):
@@ -257,8 +258,8 @@ class PandaSwitchTask:
                 on_step(k, data)
             if k % 5:
                 return  # forces and grip at 100 Hz
-            log["force"].append(float(np.linalg.norm(contact_force(model, data, paddle, tips))))
-            log["touch"].append(touching(data, tips, paddle))
+            log["force"].append(float(np.linalg.norm(pairs.force(data))))
+            log["touch"].append(pairs(data))
             local = data.xmat[paddle_body].reshape(3, 3).T @ (data.site_xpos[sites].mean(axis=0) - data.xpos[paddle_body])
             log["along"].append(-local[0])
             log["gap"].append(local[2] - THICK / 2)

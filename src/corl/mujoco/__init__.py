@@ -16,7 +16,8 @@ demonstration                   :class:`Target`, :func:`solve_ik`, :func:`solve_
 rollout                         :func:`add_servos`, :class:`PDController`, :func:`track`,
                                 :func:`add_joint_equality` (coupled fingers, a latch)
 forces                          :func:`add_force_sensor`, :class:`ForceSensor`,
-                                :func:`contact_force`, :func:`touching`
+                                :func:`contact_force`, :func:`touching`, :class:`ContactPairs`
+                                (the same two, with lookup tables built once: for every step)
 video                           :class:`Camera`, :class:`FrameRecorder`, :func:`caption`,
                                 :func:`write_side_by_side`, :func:`rendering_available`,
                                 :func:`make_renderer`
@@ -31,7 +32,8 @@ from corl.mujoco.control import PDController, add_servo, add_servos, dense_refer
 from corl.mujoco.equality import add_joint_equality
 from corl.mujoco.demo import ProjectionReport, fit_demonstration, piecewise_linear, project_demonstration
 from corl.mujoco.features import coordinate_feature, orientation_feature, position_feature, stack
-from corl.mujoco.forces import ForceSensor, add_force_sensor, contact_force, remove_static_load, touching
+from corl.mujoco.forces import (ContactPairs, ForceSensor, add_force_sensor, contact_force, remove_static_load,
+                               touching)
 from corl.mujoco.ik import Target, solve_ik, solve_waypoints
 from corl.mujoco.kinematics import Frame, Kinematics, rotation_error, rotation_error_jacobian, skew
 from corl.mujoco.robot import Gripper, Robot, example_robot_dir, load_spec, urdf_to_mjcf
@@ -47,5 +49,6 @@ __all__ = [
     "piecewise_linear", "fit_demonstration", "ProjectionReport", "project_demonstration",
     "add_servo", "add_servos", "dense_reference", "PDController", "track", "add_joint_equality",
     "add_force_sensor", "ForceSensor", "remove_static_load", "contact_force", "touching",
+    "ContactPairs",
     "Camera", "FrameRecorder", "caption", "write_side_by_side", "rendering_available", "make_renderer",
 ]
