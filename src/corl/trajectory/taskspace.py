@@ -6,7 +6,9 @@ a row of the Jacobian, so ``Jh^T Jh`` stays local and the Gauss-Newton matrix st
 
 Glossary
 --------
-fk        : forward kinematics callback ``q (Q,) -> (y (d,), dy/dq (d, Q))``
+fk        : forward kinematics callback ``q (Q,) -> (y (d,), dy/dq (d, Q))``; optionally with a method
+            ``fk.hessian(q) -> d^2 y / dq^2 (d, Q, Q)`` for the curvature (the kit's features have one)
+nu        : (c d,) weights of ``sum_i nu_i d^2 h_i / dw^2``, the constraint curvature of a Newton-KKT step
 t_k       : contact time(s), (c,); ``targets`` the task-space point(s) there, (c, d)
 """
 
@@ -38,8 +40,10 @@ class TaskSpaceFeature:
     fk : ``q (Q,) -> (y (d,), dy/dq (d, Q))``, forward kinematics and its Jacobian.
     times : (c,) contact times in [0, T].
     targets : (c, d) or (d,) task-space targets (one per time, or the same for all).
-    fk_hessian : optional ``q (Q,) -> d^2 y / dq^2 (d, Q, Q)``; without it :meth:`curvature`
-        differentiates ``dy/dq`` by forward differences (Q extra calls of fk per time).
+    fk_hessian : optional ``q (Q,) -> d^2 y / dq^2 (d, Q, Q)``. Default: ``fk.hessian`` when fk has
+        one (the features of :mod:`corl.mujoco` do: exact, and from fk's cache at an iterate it
+        has just evaluated); else :meth:`curvature` differentiates ``dy/dq`` by forward
+        differences (Q extra calls of fk per time).
 
     The value is (c d,) time-major. Only the ``(degree + 1) Q`` parameters of the control points
     active at each t_k enter its Jacobian row, so ``Jh^T Jh`` stays local (banded).
@@ -52,6 +56,8 @@ class TaskSpaceFeature:
             raise InputError(f"fk must be callable q -> (y, dy/dq), got {fk!r}")
         if fk_hessian is not None and not callable(fk_hessian):
             raise InputError(f"fk_hessian must be callable q -> d2y/dq2 (d, Q, Q) or None, got {fk_hessian!r}")
+        if fk_hessian is None and callable(getattr(fk, "hessian", None)):  # e.g. corl.mujoco's features
+            fk_hessian = fk.hessian
         self.fk, self.fk_hessian, self.Q, self.n = fk, fk_hessian, spline.num_joints, spline.n
         B = spline.basis(times)
         c = B.shape[0]
@@ -128,21 +134,27 @@ class TaskSpaceFeature:
         values at t_k), since h is fk composed with the linear map w -> xi(w, t_k).
         """
         X = self.configurations(w)
-        nu = np.asarray(nu, dtype=float).reshape(X.shape[0], self.d)
-        blocks = []
-        for k in range(X.shape[0]):
-            if self.fk_hessian is not None:
-                M = np.einsum("a,aij->ij", nu[k], np.asarray(self.fk_hessian(X[k]), dtype=float))
-            else:  # forward differences of nu^T dy/dq: column j of M is d(nu^T dy/dq)/dq_j
-                base = nu[k] @ np.asarray(self.fk(X[k])[1], dtype=float)
-                eps = _FD_STEP * (1.0 + np.abs(X[k]))
-                M = np.empty((self.Q, self.Q))
-                for j in range(self.Q):
-                    q = X[k].copy()
-                    q[j] += eps[j]
-                    M[:, j] = (nu[k] @ np.asarray(self.fk(q)[1], dtype=float) - base) / eps[j]
-            M = 0.5 * (M + M.T)
-            cols = self._block_columns[k]
-            # kron(b_k b_k^T, M) by broadcasting (np.kron's generic path costs more than the product)
-            blocks.append((cols, (self._basis_outer[k] * M[None, :, None, :]).reshape(cols.shape[0], cols.shape[0])))
-        return blocks
+        c = X.shape[0]
+        nu = np.asarray(nu, dtype=float).reshape(c, self.d)
+        M = np.empty((c, self.Q, self.Q))
+        for k in range(c):  # M_k = sum_a nu_ka d^2 y_a / dq^2
+            M[k] = self._weighted_hessian(X[k], nu[k])
+        M = 0.5 * (M + np.swapaxes(M, 1, 2))
+        # kron(b_k b_k^T, M_k) of every time at once, by broadcasting (np.kron's generic path costs more)
+        s = self._block_columns.shape[1]
+        blocks = (self._basis_outer * M[:, None, :, None, :]).reshape(c, s, s)
+        return [(self._block_columns[k], blocks[k]) for k in range(c)]
+
+    def _weighted_hessian(self, q: np.ndarray, nu: np.ndarray) -> np.ndarray:
+        """``sum_a nu_a d^2 y_a / dq^2`` (Q, Q) at q (Q,): from ``fk_hessian``, or forward differences of
+        ``nu^T dy/dq`` (column j is ``d(nu^T dy/dq)/dq_j``; Q extra calls of fk)."""
+        if self.fk_hessian is not None:
+            return np.tensordot(nu, np.asarray(self.fk_hessian(q), dtype=float).reshape(self.d, self.Q, self.Q), 1)
+        base = nu @ np.asarray(self.fk(q)[1], dtype=float)
+        eps = _FD_STEP * (1.0 + np.abs(q))
+        M = np.empty((self.Q, self.Q))
+        for j in range(self.Q):
+            qj = q.copy()
+            qj[j] += eps[j]
+            M[:, j] = (nu @ np.asarray(self.fk(qj)[1], dtype=float) - base) / eps[j]
+        return M
