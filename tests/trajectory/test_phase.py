@@ -82,3 +82,44 @@ def test_retime_projects_a_trajectory_problem_on_the_sqp_path():
     assert structured.h_fit > 1e-3 and structured.h_after < 1e-8 and plain.h_after < 1e-8
     moved = np.linalg.norm(structured.w - structured.w_fit)
     assert np.linalg.norm(structured.w - plain.w) <= 1e-6 * moved  # Eq. 18 is convex here: one answer
+
+
+def test_banded_gauss_newton_model_is_that_of_the_sparse_jacobian():
+    """gauss_newton_band gives 2 J^T J (band storage) and 2 J^T r of residuals()'s J, pinned phases and
+    active monotonicity hinges included."""
+    from corl.trajectory.phase import PhaseProblem
+
+    problem = PhaseProblem(SPLINE, badly_timed(), CONFIG, pinned_times=[0.4, 0.42])
+    rng = np.random.default_rng(0)
+    p_free = problem.identity[problem.free] + 0.012 * rng.normal(size=problem.free.size)
+    assert np.any(np.diff(problem.full(p_free)) < problem.delta)  # some hinges are active
+    r, J = problem.residuals(p_free)
+    r_band, g, H = problem.gauss_newton_band(p_free)
+    np.testing.assert_allclose(r_band, r, rtol=1e-13, atol=1e-13 * np.abs(r).max())
+    dense = 2.0 * (J.T @ J).toarray()
+    assert H.bandwidth == 2
+    np.testing.assert_allclose(H.toarray(), dense, rtol=0, atol=1e-13 * np.abs(dense).max())
+    np.testing.assert_allclose(g, 2.0 * J.T @ r, rtol=0, atol=1e-13 * np.abs(g).max())
+
+
+def test_phase_steps_run_on_banded_factors(monkeypatch):
+    """optimize_phase takes its Gauss-Newton model in band storage (no sparse Jacobian per iterate) and
+    reaches the Eq. 10 cost of the sparse path."""
+    import corl.trajectory.solver.linalg as linalg
+    from corl.trajectory.phase import PhaseProblem
+    from corl.trajectory.solver.banded import BandedSPD
+
+    factored = []
+    original = linalg.factorize_spd
+
+    def spy(H, *args, **kwargs):
+        factored.append(type(H))
+        return original(H, *args, **kwargs)
+
+    monkeypatch.setattr(linalg, "factorize_spd", spy)
+    banded = optimize_phase(SPLINE, badly_timed(), config=CONFIG)
+    assert factored and set(factored) == {BandedSPD}
+    monkeypatch.setattr(PhaseProblem, "gauss_newton_band", None)  # the sparse path of the same iteration
+    sparse = optimize_phase(SPLINE, badly_timed(), config=CONFIG)
+    assert banded.cost_after == pytest.approx(sparse.cost_after, rel=1e-9)
+    np.testing.assert_allclose(banded.p, sparse.p, atol=1e-7)

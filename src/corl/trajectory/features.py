@@ -39,7 +39,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from corl.errors import InputError, NumericalError
-from corl.trajectory.solver.banded import BandedSPD, SupportGram
+from corl.trajectory.solver.banded import BandedSPD, SupportGram, SupportPattern
 from corl.trajectory.bspline import BSpline
 from corl.trajectory.taskspace import ForwardKinematics, TaskSpaceFeature  # noqa: F401  (re-exported)
 
@@ -83,10 +83,17 @@ class LinearFeature:
             raise InputError(f"{name}: b has shape {self.b.shape}, expected ({self.A.shape[0]},)")
         self.name = name
         self._gram: BandedSPD | None = None
+        self._transpose: sp.csr_matrix | None = None
 
     @property
     def dim(self) -> int:
         return self.A.shape[0]
+
+    def transpose(self) -> sp.csr_matrix:
+        """``A^T`` (n, m) in CSR, computed once per feature (``A^T r`` by one CSR product)."""
+        if self._transpose is None:
+            self._transpose = self.A.T.tocsr()
+        return self._transpose
 
     def gram(self) -> BandedSPD:
         """``2 A^T A`` (n, n) in band storage, computed once per feature (the Hessian of ``||A w - b||^2``)."""
@@ -285,14 +292,15 @@ class TrajectoryProblem:
             parts.append((np.asarray(value, dtype=float).ravel(), jac if type(jac) is sp.csr_matrix else sp.csr_matrix(jac)))
         return np.concatenate([p[0] for p in parts]), stack_csr([p[1] for p in parts], self.n)
 
-    def equalities_on_support(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple] | None:
+    def equalities_on_support(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, SupportPattern] | None:
         """``h`` (q,) and ``dh/dw`` kept on the few columns it touches, without a sparse matrix.
 
-        Returns ``(h, support (s,), Js (q, s), pairs)`` with ``Js = dh/dw[:, support]`` and
-        ``pairs`` the (rows, cols) of the lower triangle of ``Js^T Js`` that are structurally
-        non-zero (for :class:`~corl.trajectory.solver.banded.SupportGram`); or None when some nonlinear
-        equality does not offer ``jacobian_rows`` (then use :meth:`equalities`). The solver's
-        banded path calls this once per iterate: the layout is built on the first call.
+        Returns ``(h, support (s,), Js (q, s), pattern)`` with ``Js = dh/dw[:, support]`` and
+        ``pattern`` the :class:`~corl.trajectory.solver.banded.SupportPattern` of its structural
+        non-zeros (the same object at every w, so the solver caches what it derives from it); or
+        None when some nonlinear equality does not offer ``jacobian_rows`` (then use
+        :meth:`equalities`). The solver's banded path calls this once per iterate: the layout is
+        built on the first call.
         """
         if self._support_layout is False:
             self._support_layout = _SupportLayout.build(self._eq_linear, self._eq_other)
@@ -308,7 +316,7 @@ class TrajectoryProblem:
             value, rows = f.jacobian_rows(w)
             values.append(value)
             Js[rows_at, cols_at] = rows
-        return np.concatenate(values), layout.support, Js, layout.pairs
+        return np.concatenate(values), layout.support, Js, layout.pattern
 
     def equality_curvature(self, w: np.ndarray, nu: np.ndarray) -> SupportGram | None:
         """``sum_i nu_i d^2 h_i / dw^2`` (n, n) as a :class:`SupportGram`, or None when every
@@ -327,7 +335,7 @@ class TrajectoryProblem:
         if not blocks:
             return None
         if len(blocks) == 1:  # one contact time: its columns are already sorted and distinct
-            return SupportGram(blocks[0][0], blocks[0][1], self.n)
+            return SupportGram.dense_block(blocks[0][0], blocks[0][1], self.n)
         support = np.unique(np.concatenate([cols for cols, _ in blocks]))
         G = np.zeros((support.shape[0], support.shape[0]))
         for cols, block in blocks:
@@ -361,6 +369,13 @@ class TrajectoryProblem:
         r, _ = self.residuals(w)
         return float(r @ r)
 
+    def affine_transpose(self) -> sp.csr_matrix | None:
+        """``A^T`` (n, p) of an affine cost ``r = A w - b`` (see :meth:`affine_cost`), else None: the
+        solver's cost gradient is then ``2 A^T r`` (a CSR product over A's few non-zeros)."""
+        if self._cost_other or self._cost_linear is None:
+            return None
+        return self._cost_linear.transpose()
+
     def affine_cost(self) -> tuple[BandedSPD, np.ndarray] | None:
         """``(2 A^T A, 2 A^T b)`` when every cost feature is linear (``r = A w - b``), else None.
 
@@ -382,12 +397,13 @@ class TrajectoryProblem:
 class _SupportLayout:
     """Where the rows of the stacked equality Jacobian go in its dense block ``Js`` (q, s) on the
     touched columns ``support`` (s,): constant, since the linear rows are constant and each
-    :class:`TaskSpaceFeature` row touches the same ``(degree + 1) Q`` columns at every w."""
+    :class:`TaskSpaceFeature` row touches the same ``(degree + 1) Q`` columns at every w.
+    ``pattern`` is its :class:`~corl.trajectory.solver.banded.SupportPattern`."""
 
-    __slots__ = ("support", "Js_linear", "rows_at", "cols_at", "pairs")
+    __slots__ = ("support", "Js_linear", "rows_at", "cols_at", "pattern")
 
-    def __init__(self, support, Js_linear, rows_at, cols_at, pairs) -> None:
-        self.support, self.Js_linear, self.rows_at, self.cols_at, self.pairs = support, Js_linear, rows_at, cols_at, pairs
+    def __init__(self, support, Js_linear, rows_at, cols_at, pattern) -> None:
+        self.support, self.Js_linear, self.rows_at, self.cols_at, self.pattern = support, Js_linear, rows_at, cols_at, pattern
 
     @classmethod
     def build(cls, linear: LinearFeature | None, other: tuple) -> _SupportLayout | None:
@@ -411,6 +427,4 @@ class _SupportLayout:
             rows_at.append(rows)
             cols_at.append(cols)
             start += f.dim
-        touched = touched.astype(float)
-        pairs = np.nonzero(np.tril(touched.T @ touched))  # structural pattern of Js^T Js
-        return cls(support, Js_linear, tuple(rows_at), tuple(cols_at), pairs)
+        return cls(support, Js_linear, tuple(rows_at), tuple(cols_at), SupportPattern(support, touched))

@@ -8,7 +8,10 @@ The path of ``xi(w, .)`` is kept and only its timing changes: the re-timed traje
          + c_p (p_{i-1} - 2 p_i + p_{i+1})^2                        (c_p = 1 in the paper)
 
 is minimised over the interior phases by :func:`corl.trajectory.solver.solve` (Gauss-Newton,
-trust region ``||p - p_prev|| <= radius``, as Eq. 8 limits w). Monotonicity
+trust region ``||p - p_prev|| <= radius``, as Eq. 8 limits w). Every residual touches at most three
+consecutive phases, so :class:`PhaseProblem` gives its Gauss-Newton model ``2 Jr^T Jr`` in band
+storage (bandwidth 2, :meth:`PhaseProblem.gauss_newton_band`) and the damped Gauss-Newton steps run
+on banded Cholesky factors, with no sparse Jacobian built per iterate. Monotonicity
 ``p_{i+1} - p_i >= delta`` is a squared-hinge penalty ``c_m max(0, delta - (p_{i+1} - p_i))^2 /
 dt^4`` in the same least-squares problem; should a tiny violation survive, a final repair raises
 each increment to ``delta / 2`` (renormalised so ``p_K = 1``), so the returned p is always
@@ -41,10 +44,12 @@ from typing import Sequence
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.interpolate import BSpline as _ScipyBSpline
 
 from corl.errors import InputError
 from corl.trajectory.bspline import BSpline
 from corl.trajectory.solver import SolveResult, SolverConfig, project, solve
+from corl.trajectory.solver.banded import BandedSPD
 
 __all__ = [
     "PhaseConfig",
@@ -103,6 +108,10 @@ class PhaseProblem:
     """Eq. 10 plus the monotonicity hinge, as a :class:`~corl.trajectory.solver.LeastSquaresProblem`
     over the free phases ``p[free]``.
 
+    Each residual touches at most three consecutive phases, so ``Jr^T Jr`` is banded (bandwidth 2):
+    :meth:`gauss_newton_band` gives the Gauss-Newton model in band storage, and the solver's damped
+    Gauss-Newton steps run on banded Cholesky factors with no sparse matrix built per iterate.
+
     Parameters
     ----------
     spline, w : the trajectory whose geometry is kept; w: (n,).
@@ -129,6 +138,12 @@ class PhaseProblem:
         self.D2_x = sp.kron(D2, sp.identity(spline.num_joints), format="csr") / self.dt**2
         self.phase_rows = math.sqrt(config.phase_weight) * D2
         self.hinge_scale = math.sqrt(config.monotone_weight) / self.dt**2
+        # xi(w, .) and its time derivative as spline objects (de Boor evaluation, no basis matrix)
+        self._xi = _ScipyBSpline(spline.knots, self.W, spline.degree)
+        self._dxi = self._xi.derivative(1)
+        self._band_free = _free_band_positions(self.free, K)
+        c = config.phase_weight  # (sqrt(c_p) D2)^T (sqrt(c_p) D2): a constant part of the band
+        self._phase_band = _second_difference_band(np.full(K + 1, c), np.full(K, c), np.full(K - 1, c))
 
     def full(self, p_free: np.ndarray) -> np.ndarray:
         """The whole profile (K+1,) from the free phases (fixed ones at ``t / T``)."""
@@ -136,39 +151,105 @@ class PhaseProblem:
         p[self.free] = p_free
         return p
 
-    def residuals(self, p_free: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+    def _pieces(self, p_free: np.ndarray) -> tuple:
+        """``(p (K+1,), U (K+1, Q), r_x (K-1, Q), r_p (K-1,), active (K,), r_m (K,))`` at p_free, with
+        ``U = T xi'(p T) / dt^2`` (so ``d r_x[i] / dp_j = U[j]`` times the stencil (1, -2, 1))."""
         p = self.full(p_free)
         s = np.clip(p, 0.0, 1.0) * self.T
-        X = self.spline.basis(s) @ self.W  # xi(w, p_i T): (K+1, Q)
-        V = self.spline.basis(s, 1) @ self.W  # d xi / dt at p_i T: (K+1, Q)
-        Q = X.shape[1]
-        # Eq. 10, first term: (xi(p_{i-1} T) - 2 xi(p_i T) + xi(p_{i+1} T)) / dt^2; d/dp_j = T xi'(p_j T) / dt^2.
-        r_x = self.D2_x @ X.reshape(-1)
+        X = self._xi(s)  # xi(w, p_i T): (K+1, Q)
+        U = (self.T / self.dt**2) * self._dxi(s)
+        # Eq. 10, first term: (xi(p_{i-1} T) - 2 xi(p_i T) + xi(p_{i+1} T)) / dt^2
+        r_x = (X[:-2] - 2.0 * X[1:-1] + X[2:]) / self.dt**2
+        # Eq. 10, second term: c_p (p_{i-1} - 2 p_i + p_{i+1})^2
+        r_p = math.sqrt(self.config.phase_weight) * (p[:-2] - 2.0 * p[1:-1] + p[2:])
+        # Monotonicity: c_m max(0, delta - (p_{i+1} - p_i))^2 / dt^4 (squared hinge)
+        gap = np.diff(p)
+        active = (gap < self.delta).astype(float)
+        r_m = self.hinge_scale * active * (self.delta - gap)
+        return p, U, r_x, r_p, active, r_m
+
+    def residuals(self, p_free: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
+        p, U, r_x, r_p, active, r_m = self._pieces(p_free)
+        K, Q = self.K, U.shape[1]
+        # d r_x[i, j] / dp_m = U[m, j] (1, -2, 1)[m - i + 1]: the rows of D2_x times diag(U)
         dX = sp.csr_matrix(
-            (self.T * V.reshape(-1), np.repeat(np.arange(self.K + 1), Q), np.arange((self.K + 1) * Q + 1)),
-            shape=((self.K + 1) * Q, self.K + 1),
+            (U.reshape(-1) * self.dt**2, np.repeat(np.arange(K + 1), Q), np.arange((K + 1) * Q + 1)),
+            shape=((K + 1) * Q, K + 1),
         )
         J_x = self.D2_x @ dX
-        # Eq. 10, second term: c_p (p_{i-1} - 2 p_i + p_{i+1})^2.
-        r_p = self.phase_rows @ p
-        # Monotonicity: c_m max(0, delta - (p_{i+1} - p_i))^2 / dt^4 (squared hinge).
-        gap = self.D1 @ p
-        short = gap < self.delta
-        r_m = self.hinge_scale * np.where(short, self.delta - gap, 0.0)
-        J_m = sp.diags(-self.hinge_scale * short.astype(float)) @ self.D1
-        r = np.concatenate([r_x, r_p, r_m])
+        J_m = sp.diags(-self.hinge_scale * active) @ self.D1
+        r = np.concatenate([r_x.reshape(-1), r_p, r_m])
         J = sp.vstack([J_x, self.phase_rows, J_m], format="csc")[:, self.free]
         return r, J.tocsr()
+
+    def gauss_newton_band(self, p_free: np.ndarray) -> tuple[np.ndarray, np.ndarray, BandedSPD]:
+        """``(r, 2 Jr^T r (f,), 2 Jr^T Jr)`` at p_free (f,), the last in band storage (bandwidth 2).
+
+        The Gram of the rows ``(1, -2, 1)`` on phases ``(i-1, i, i+1)`` with weights U (Eq. 10) and
+        of the hinge rows on ``(m, m+1)``, summed on the whole profile and restricted to the free
+        phases (:func:`_free_band_positions`).
+        """
+        p, U, r_x, r_p, active, r_m = self._pieces(p_free)
+        # Eq. 10, first term: U[m] . U[m + o] for o = 0, 1, 2
+        d0 = np.einsum("ij,ij->i", U, U)
+        d1 = np.einsum("ij,ij->i", U[:-1], U[1:])
+        d2 = np.einsum("ij,ij->i", U[:-2], U[2:])
+        band = _second_difference_band(d0, d1, d2) + self._phase_band
+        a = self.hinge_scale**2 * active  # hinge rows: a [[1, -1], [-1, 1]] on (m, m+1)
+        band[0, :-1] += a
+        band[0, 1:] += a
+        band[1, :-1] -= a
+        # J^T r: stencil (1, -2, 1) times the per-phase products U . r_x (and c_p r_p), hinge (1, -1)
+        c = math.sqrt(self.config.phase_weight)
+        g = np.zeros(self.K + 1)
+        g[:-2] += np.einsum("ij,ij->i", U[:-2], r_x) + c * r_p
+        g[1:-1] -= 2.0 * (np.einsum("ij,ij->i", U[1:-1], r_x) + c * r_p)
+        g[2:] += np.einsum("ij,ij->i", U[2:], r_x) + c * r_p
+        e = self.hinge_scale * r_m  # active rows only (r_m is 0 elsewhere)
+        g[:-1] += e
+        g[1:] -= e
+        flat = np.append(band.reshape(-1), 0.0)  # the last entry: a zero for pairs beyond the band
+        ab = np.asfortranarray(2.0 * flat[self._band_free])
+        r = np.concatenate([r_x.reshape(-1), r_p, r_m])
+        return r, 2.0 * g[self.free], BandedSPD(ab)
 
     def equalities(self, p_free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return np.zeros(0), np.zeros((0, p_free.shape[0]))
 
     def eq10(self, p: np.ndarray) -> float:
         """Eq. 10 (without the hinge) for a whole profile p (K+1,)."""
-        X = self.spline.basis(np.clip(p, 0.0, 1.0) * self.T) @ self.W
-        r_x = self.D2_x @ X.reshape(-1)
+        X = self._xi(np.clip(p, 0.0, 1.0) * self.T)
+        r_x = (X[:-2] - 2.0 * X[1:-1] + X[2:]) / self.dt**2
         r_p = self.phase_rows @ p
-        return float(r_x @ r_x + r_p @ r_p)
+        return float(np.dot(r_x.reshape(-1), r_x.reshape(-1)) + r_p @ r_p)
+
+
+def _second_difference_band(d0: np.ndarray, d1: np.ndarray, d2: np.ndarray) -> np.ndarray:
+    """Lower band (3, K+1) of ``sum_i s_i^T s_i`` over the rows ``s_i = (u_{i-1}, -2 u_i, u_{i+1})``
+    on phases ``(i-1, i, i+1)``, i = 1..K-1, given ``d_o[m] = u_m . u_{m+o}``: (K+1,), (K,), (K-1,)."""
+    K = d0.shape[0] - 1
+    band = np.zeros((3, K + 1))
+    band[0, :-2] += d0[:-2]  # (i-1, i-1)
+    band[0, 1:-1] += 4.0 * d0[1:-1]  # (i, i)
+    band[0, 2:] += d0[2:]  # (i+1, i+1)
+    band[1, :-2] -= 2.0 * d1[:-1]  # (i, i-1), stored in column i-1
+    band[1, 1:-1] -= 2.0 * d1[1:]  # (i+1, i), stored in column i
+    band[2, :-2] += d2  # (i+1, i-1)
+    return band
+
+
+def _free_band_positions(free: np.ndarray, K: int) -> np.ndarray:
+    """Flat positions (3, f) in a C-ordered band (3, K+1) of the free phases' band entries: entry
+    (o, j) of the free band is ``H[free[j + o], free[j]]``, at offset ``free[j + o] - free[j]`` of the
+    whole profile; pairs beyond offset 2 (or past the end) point at ``3 (K+1)``, a zero."""
+    f = free.shape[0]
+    positions = np.full((3, f), 3 * (K + 1), dtype=np.intp)
+    for o in range(3):
+        j = np.arange(f - o)
+        offset = free[j + o] - free[j]
+        inside = offset <= 2
+        positions[o, j[inside]] = offset[inside] * (K + 1) + free[j[inside]]
+    return positions
 
 
 def phase_cost(spline: BSpline, w, p, config: PhaseConfig = PhaseConfig()) -> float:

@@ -57,3 +57,27 @@ def test_support_gram_adds_like_dense_and_widens_the_band():
     total = BandedSPD.from_sparse(H) + 3.0 * G
     np.testing.assert_allclose(total.toarray(), H.toarray() + 6.0 * (J.T @ J).toarray(), atol=1e-12)
     assert total.bandwidth == 5  # the second row spans 6 columns; no start-end coupling is stored
+
+
+def test_banded_sum_adds_its_blocks_like_dense_and_a_covered_block_merges():
+    from corl.trajectory.solver.banded import BandedSum, SupportPattern
+
+    H = banded_spd(n=50, u=3, seed=7)
+    base = BandedSPD.from_sparse(H)
+    support = np.array([0, 1, 20, 21, 22, 23])
+    touched = np.array([[1, 0, 0, 0, 0, 0], [0, 1, 0, 0, 0, 0], [0, 0, 1, 1, 1, 1]], dtype=bool)
+    pattern = SupportPattern(support, touched)
+    rng = np.random.default_rng(8)
+    Js = np.where(touched, rng.normal(size=touched.shape), 0.0)
+    gram = SupportGram(support, 2.0 * Js.T @ Js, 50, pattern.pairs, Js, pattern)
+    curvature = SupportGram.dense_block(np.arange(20, 24), np.full((4, 4), 0.5), 50)
+    total = BandedSum(base, (gram, curvature))
+    dense = H.toarray() + gram.toarray() + curvature.toarray()
+    assert total.bandwidth == 3
+    np.testing.assert_allclose(BandedSPD(total.band()).toarray(), dense, atol=1e-12)
+    x = rng.normal(size=50)
+    np.testing.assert_allclose(total @ x, dense @ x, rtol=1e-12)
+    np.testing.assert_allclose(total.diagonal(), np.diagonal(dense), rtol=1e-12)
+    at = gram.covers(curvature)  # the contact row touches all four columns: the block merges
+    np.testing.assert_array_equal(at, [2, 3, 4, 5])
+    assert gram.covers(SupportGram.dense_block(np.array([1, 20]), np.eye(2), 50)) is None  # 1 and 20: no row

@@ -192,3 +192,108 @@ def test_singular_hessian_is_refused():
     support = np.array([20])
     with pytest.raises(IndefiniteHessian):
         KKTSystem(Hb, 0.0, support, np.ones((1, 1)))
+
+
+def _unit_rows_case(seed: int):
+    """Start and goal rows fixing one parameter each, a contact row on the interior that also touches a
+    fixed column: (support, Js, dense Jh (5, N))."""
+    rng = np.random.default_rng(seed)
+    support = np.array([0, 1, 17, 18, 19, 38, 39])
+    Js = np.zeros((5, 7))
+    Js[0, 0], Js[1, 1], Js[2, 6] = 2.0, 0.7, -1.5  # unit rows: w_0, w_1, w_39 fixed
+    Js[3, 2:5] = rng.normal(size=3)
+    Js[4, [0, 3, 4]] = rng.normal(size=3)  # touches the fixed column 0
+    Jh = np.zeros((5, N))
+    Jh[:, support] = Js
+    return support, Js, Jh
+
+
+def test_rows_that_fix_a_parameter_are_eliminated_exactly():
+    from corl.trajectory.solver.factor import KKTStructure
+
+    _, H = banded_hessian(18)
+    support, Js, Jh = _unit_rows_case(19)
+    structure = KKTStructure(support, Js != 0.0)
+    np.testing.assert_array_equal(structure.fixed_cols, [0, 1, 39])
+    H = H + Jh.T @ Jh  # the SQP adds 2 mu Jh^T Jh: definite
+    Hb = BandedSPD.from_sparse(sp.csr_matrix(H))
+    rng = np.random.default_rng(20)
+    for shift in (0.0, 0.3):
+        b, c = rng.normal(size=N), rng.normal(size=5)
+        a, lam = KKTSystem(Hb, shift, support, Js, structure).solve(b, c)
+        d_ref, lam_ref = dense_kkt(H, Jh, b, c, nu=shift, u=np.zeros(N))
+        np.testing.assert_allclose(a, d_ref, rtol=1e-9, atol=1e-10 * np.abs(d_ref).max())
+        np.testing.assert_allclose(lam, lam_ref, rtol=1e-9, atol=1e-10 * np.abs(lam_ref).max())
+    g, h = 10.0 * rng.normal(size=N), 0.01 * rng.normal(size=5)
+    u = rng.normal(size=N)
+    d, lam, z, nu = constrained_step(Hb, g, support, Js, h, u, 1.2 * np.linalg.norm(u), structure=structure)
+    _assert_ball_step_is_optimal(H, Jh, g, h, u, 1.2 * np.linalg.norm(u), d, lam, z, nu)
+
+
+def _condensable_case(seed: int, N2: int = 60, mu: float = 1.0, curvature_scale: float = 0.3):
+    """H = H_J + mu 2 Jh^T Jh + curvature, with start and goal fixed and a contact on columns 25..29:
+    (BandedSum, dense H, support, Js, Jh, pattern)."""
+    from corl.trajectory.solver.banded import BandedSum, SupportGram, SupportPattern
+
+    rng = np.random.default_rng(seed)
+    D = sp.diags([1.0, -2.0, 1.0], [0, 1, 2], shape=(N2 - 2, N2)).toarray()
+    H_J = 2.0 * D.T @ np.diag(rng.uniform(0.5, 2.0, N2 - 2)) @ D
+    base = BandedSPD.from_sparse(sp.csr_matrix(H_J), 4)
+    support = np.array([0, 1, 25, 26, 27, 28, 29, N2 - 2, N2 - 1])
+    touched = np.zeros((6, 9), dtype=bool)
+    touched[[0, 1, 2, 3], [0, 1, 7, 8]] = True
+    touched[4:, 2:7] = True
+    pattern = SupportPattern(support, touched)
+    Js = np.where(touched, rng.normal(size=touched.shape), 0.0)
+    Jh = np.zeros((6, N2))
+    Jh[:, support] = Js
+    R = rng.normal(size=(5, 5))
+    C = curvature_scale * (R @ R.T)  # semi-definite for a positive scale
+    gram = SupportGram(support, 2.0 * mu * Js.T @ Js, N2, pattern.pairs, Js, pattern)
+    H = BandedSum(base, (gram, SupportGram.dense_block(np.arange(25, 30), C, N2)))
+    dense = H_J + 2.0 * mu * Jh.T @ Jh
+    dense[25:30, 25:30] += C
+    return H, dense, support, Js, Jh, pattern
+
+
+def test_condensation_on_the_constraint_window_matches_the_dense_kkt():
+    from corl.trajectory.solver.factor import structure_of
+
+    rng = np.random.default_rng(21)
+    for mu in (1.0, 0.2):  # a new mu reuses the factors of the two sides (same H_J and shift)
+        H, dense, support, Js, Jh, _ = _condensable_case(22, mu=mu)
+        structure = structure_of(H.blocks[0])
+        for shift in (0.0, 0.7, 0.0):
+            kkt = KKTSystem(H, shift, support, Js, structure)
+            assert kkt.cond is not None and structure.window == (25, 5)
+            b, c = rng.normal(size=60), rng.normal(size=6)
+            a, lam = kkt.solve(b, c)
+            q = Jh.shape[0]
+            K = np.block([[dense + shift * np.eye(60), Jh.T], [Jh, np.zeros((q, q))]])
+            ref = np.linalg.solve(K, -np.concatenate([b, c]))
+            np.testing.assert_allclose(a, ref[:60], rtol=1e-9, atol=1e-10 * np.abs(ref[:60]).max())
+            np.testing.assert_allclose(lam, ref[60:], rtol=1e-9, atol=1e-10 * np.abs(ref[60:]).max())
+        assert len(structure.sides) == 2  # shift 0 and 0.7 kept
+
+
+def test_condensation_refuses_an_indefinite_window_and_steps_aside_near_the_ends():
+    from corl.trajectory.solver.banded import BandedSum, SupportGram
+    from corl.trajectory.solver.factor import structure_of
+
+    H, dense, support, Js, Jh, _ = _condensable_case(23, curvature_scale=-50.0)
+    assert np.linalg.eigvalsh(dense)[0] < 0
+    with pytest.raises(IndefiniteHessian):
+        KKTSystem(H, 0.0, support, Js, structure_of(H.blocks[0]))
+    # a curvature block outside the window: the direct band factorization, same answer
+    H, dense, support, Js, Jh, _ = _condensable_case(24)
+    outside = SupportGram.dense_block(np.arange(40, 43), 0.1 * np.eye(3), 60)
+    H2 = BandedSum(H.base, H.blocks + (outside,))
+    dense2 = dense.copy()
+    dense2[40:43, 40:43] += 0.1 * np.eye(3)
+    kkt = KKTSystem(H2, 0.0, support, Js, structure_of(H.blocks[0]))
+    assert kkt.cond is None
+    rng = np.random.default_rng(25)
+    b, c = rng.normal(size=60), rng.normal(size=6)
+    a, _ = kkt.solve(b, c)
+    K = np.block([[dense2, Jh.T], [Jh, np.zeros((6, 6))]])
+    np.testing.assert_allclose(a, np.linalg.solve(K, -np.concatenate([b, c]))[:60], rtol=1e-9, atol=1e-10)

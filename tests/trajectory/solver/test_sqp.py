@@ -187,3 +187,34 @@ def _scipy_before(version: str) -> bool:
     import scipy
 
     return tuple(int(p) for p in scipy.__version__.split(".")[:2]) < tuple(int(p) for p in version.split("."))
+
+
+@pytest.mark.parametrize("radius", [np.inf, 1.6])
+def test_condensation_and_one_band_factorization_give_the_same_steps(reaching, monkeypatch, radius):
+    """The KKT steps condensed on the contact window (corl.trajectory.solver.condense) and those of
+    one banded Cholesky of the whole KKT Hessian are the same steps: same iterates to rounding."""
+    import corl.trajectory.solver.condense as condense
+    from corl.trajectory.solver.kkt import KKTSystem
+
+    _, problem, w0 = reaching(P=20)
+    used = []
+    original = KKTSystem.__init__
+
+    def spy(self, *args, **kwargs):
+        original(self, *args, **kwargs)
+        used.append(self.cond is not None)
+
+    monkeypatch.setattr(KKTSystem, "__init__", spy)
+    condensed = solve(problem, w0, radius=radius, config=SQP)
+    assert all(used) and condensed.converged, condensed.status
+    monkeypatch.setattr(condense, "_MAX_WINDOW", 0)  # no window qualifies: the direct factorization
+    used.clear()
+    direct = solve(problem, w0, radius=radius, config=SQP)
+    assert not any(used) and direct.converged
+    assert direct.iterations == condensed.iterations
+    scale = np.abs(direct.w).max()
+    np.testing.assert_allclose(condensed.w, direct.w, rtol=0, atol=1e-8 * scale)
+    assert condensed.cost == pytest.approx(direct.cost, rel=1e-10)
+    np.testing.assert_allclose(condensed.multipliers, direct.multipliers, rtol=1e-6, atol=1e-9 * np.abs(direct.multipliers).max())
+    if np.isfinite(radius):
+        assert any(record.damping > 0.0 for record in condensed.history)  # the ball was active on some step

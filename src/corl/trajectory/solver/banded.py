@@ -29,7 +29,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from corl.errors import InputError, NumericalError
 
-__all__ = ["BandedSPD", "SupportGram", "BandedCholeskyFactor", "banded_cholesky", "bandwidth", "banded_ordering"]
+__all__ = ["BandedSPD", "BandedSum", "SupportPattern", "SupportGram", "BandedCholeskyFactor", "banded_cholesky", "bandwidth", "banded_ordering"]
 
 _JITTER_LADDER = (1e-12, 1e-10, 1e-8, 1e-6, 1e-4)  # relative to the mean diagonal, as corl.numerics
 
@@ -78,6 +78,10 @@ class BandedSPD:
             return BandedSPD(ab)
         return NotImplemented
 
+    def band(self) -> np.ndarray:
+        """A Fortran-ordered copy of the band storage (u + 1, n), to factorize in place."""
+        return self.ab.copy(order="F")
+
     def toarray(self) -> np.ndarray:
         """Dense (n, n) copy (tests and debugging only)."""
         n, u = self.ab.shape[1], self.bandwidth
@@ -112,21 +116,47 @@ class BandedSPD:
         return cls(ab)
 
 
+class SupportPattern:
+    """The structural non-zeros of a constraint Jacobian on its support: constant for a problem.
+
+    A problem that gives its equalities on their support (``equalities_on_support``) builds one
+    once; :class:`SupportGram` carries it, and the solver caches what it derives from it (band
+    positions, the KKT elimination of :mod:`corl.trajectory.solver.kkt`) in :attr:`derived`.
+
+    Attributes
+    ----------
+    support : (s,) sorted columns;  touched : (q, s) bool, the structural non-zeros of ``J[:, support]``.
+    pairs : (rows, cols) of the lower triangle of ``J^T J`` on the support that some row touches.
+    derived : dict, the solver's caches (keyed by name).
+    """
+
+    __slots__ = ("support", "touched", "pairs", "derived")
+
+    def __init__(self, support: np.ndarray, touched: np.ndarray) -> None:
+        self.support, self.touched = support, touched
+        t = touched.astype(float)
+        self.pairs = np.nonzero(np.tril(t.T @ t))  # structural pattern of J^T J
+        self.derived: dict = {}
+
+
 class SupportGram:
     """``scale * J^T J`` for a sparse J (q, n) with few non-zero columns, kept as a small dense block.
 
     The constraint part ``Jh^T Jh`` of the Gauss-Newton matrix (Eq. 8): its rows touch only the
     control points active at the constraint times, so it is stored as ``G`` (s, s) on ``support``.
+    ``pattern`` is the problem's :class:`SupportPattern` when it has one (its caches are shared by
+    every iterate), else None.
     """
 
-    __slots__ = ("support", "G", "n", "pairs", "Js")
+    __slots__ = ("support", "G", "n", "pairs", "Js", "pattern")
 
-    def __init__(self, support: np.ndarray, G: np.ndarray, n: int, pairs: tuple | None = None, Js=None) -> None:
-        self.support, self.G, self.n, self.Js = support, G, n, Js
+    def __init__(self, support: np.ndarray, G: np.ndarray, n: int, pairs: tuple | None = None, Js=None,
+                 pattern: SupportPattern | None = None) -> None:
+        self.support, self.G, self.n, self.Js, self.pattern = support, G, n, Js, pattern
         # (rows, cols) of the lower-triangle entries of G that some row of J touches (the others
         # are structurally zero: a start and a goal constraint do not couple start and goal).
         if pairs is None:
-            pairs = np.nonzero((G != 0.0) & _lower_mask(G.shape[0]))
+            pairs = pattern.pairs if pattern is not None else np.nonzero((G != 0.0) & _lower_mask(G.shape[0]))
         self.pairs = pairs
 
     @classmethod
@@ -147,6 +177,16 @@ class SupportGram:
         pairs = np.nonzero(np.tril(touched.T @ touched))  # structural pattern of Js^T Js
         return cls(support, scale * (Js.T @ Js), n, pairs, Js)
 
+    @classmethod
+    def dense_block(cls, support: np.ndarray, G: np.ndarray, n: int) -> SupportGram:
+        """A dense symmetric block G (s, s) on ``support``: every lower-triangle entry is added (zeros
+        too), without a scan for non-zeros."""
+        s = G.shape[0]
+        pairs = _TRIL.get(s)
+        if pairs is None:
+            pairs = _TRIL[s] = np.tril_indices(s)
+        return cls(support, G, n, pairs)
+
     @property
     def shape(self) -> tuple[int, int]:
         return self.n, self.n
@@ -156,14 +196,13 @@ class SupportGram:
         return np.diagonal(self.G)
 
     def __mul__(self, c: float) -> SupportGram:
-        return SupportGram(self.support, c * self.G, self.n, self.pairs, self.Js)
+        return SupportGram(self.support, c * self.G, self.n, self.pairs, self.Js, self.pattern)
 
     __rmul__ = __mul__
 
     def added_to(self, H: BandedSPD) -> BandedSPD:
         """A new :class:`BandedSPD` ``H + self`` (the band widens when the block does not fit)."""
-        offset, columns = self._band_positions()
-        need = int(offset.max()) if offset.size else 0
+        offset, columns, need = self._band_positions()
         ab = _widened(H.ab, max(need, H.bandwidth))
         rows, cols = self.pairs
         ab[offset, columns] += self.G[rows, cols]  # (offset, column) pairs are distinct
@@ -171,18 +210,59 @@ class SupportGram:
 
     def add_into(self, H: BandedSPD) -> bool:
         """``H += self`` in place when the block fits in H's band; returns False (H untouched) if not."""
-        offset, columns = self._band_positions()
-        if offset.size and int(offset.max()) > H.bandwidth:
+        offset, columns, need = self._band_positions()
+        if need > H.bandwidth:
             return False
         rows, cols = self.pairs
         H.ab[offset, columns] += self.G[rows, cols]
         return True
 
-    def _band_positions(self) -> tuple[np.ndarray, np.ndarray]:
-        """(row in band storage, column) of each entry of :attr:`pairs`, both (len(pairs),)."""
+    def _band_positions(self) -> tuple[np.ndarray, np.ndarray, int]:
+        """(row in band storage, column) of each entry of :attr:`pairs`, both (len(pairs),), and the
+        largest row; cached on the pattern when there is one."""
+        if self.pattern is not None:
+            found = self.pattern.derived.get("band_positions")
+            if found is not None:
+                return found
         s = self.support
         rows, cols = self.pairs  # lower triangle of the block (support is sorted)
-        return s[rows] - s[cols], s[cols]
+        offset = s[rows] - s[cols]
+        found = offset, s[cols], int(offset.max()) if offset.size else 0
+        if self.pattern is not None:
+            self.pattern.derived["band_positions"] = found
+        return found
+
+    def scatter(self, u: int) -> tuple[np.ndarray, np.ndarray]:
+        """Flat positions of :attr:`pairs` in a Fortran-ordered band (u + 1, n) and in ``G.ravel()``
+        (``band.T.reshape(-1)[positions] += G.ravel()[at]``); cached on the pattern when there is one."""
+        key = ("scatter", u)
+        if self.pattern is not None and key in self.pattern.derived:
+            return self.pattern.derived[key]
+        offset, columns, _ = self._band_positions()
+        rows, cols = self.pairs
+        found = columns * (u + 1) + offset, rows * self.G.shape[1] + cols
+        if self.pattern is not None:
+            self.pattern.derived[key] = found
+        return found
+
+    def covers(self, other: SupportGram) -> np.ndarray | None:
+        """Where ``other``'s columns are in this block's support, (s_other,), when this block's pattern
+        holds every pair of them (so ``other`` can be added into ``G`` and scattered with this block's
+        pairs); None otherwise. Cached on the pattern per column set."""
+        if self.pattern is None:
+            return None
+        key = ("covers", other.support.tobytes())
+        found = self.pattern.derived.get(key, False)
+        if found is False:
+            found = None
+            at = np.searchsorted(self.support, other.support)
+            if at.shape[0] and at[-1] < self.support.shape[0] and np.array_equal(self.support[at], other.support):
+                held = np.zeros((self.support.shape[0],) * 2, dtype=bool)
+                held[self.pairs] = True
+                lower = _lower_mask(at.shape[0])
+                found = at if held[at[:, None], at][lower].all() else None
+            self.pattern.derived[key] = found
+        return found
 
     def toarray(self) -> np.ndarray:
         H = np.zeros((self.n, self.n))
@@ -190,6 +270,54 @@ class SupportGram:
         return H
 
 
+_TRIL: dict[int, tuple] = {}
+
+
+class BandedSum:
+    """``base + sum_k blocks_k``: a :class:`BandedSPD` plus dense blocks on few columns
+    (:class:`SupportGram`), kept apart and added into band storage only when a factorization asks
+    (:meth:`band`: one copy of the band per factorization, none for a product).
+
+    The KKT Hessian of Eq. 8 is one: the constant ``H_J = 2 A^T A`` of the cost (Eq. 9) plus the
+    constraint's ``2 mu Jh^T Jh`` and curvature on the contact columns (Eq. 6).
+    """
+
+    __slots__ = ("base", "blocks", "bandwidth")
+
+    def __init__(self, base: BandedSPD, blocks: tuple) -> None:
+        self.base, self.blocks = base, blocks
+        self.bandwidth = max([base.bandwidth] + [block._band_positions()[2] for block in blocks])
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.base.shape
+
+    def band(self) -> np.ndarray:
+        """The sum in band storage, a new Fortran-ordered (u + 1, n) array (widened when a block needs it)."""
+        ab = _widened(self.base.ab, self.bandwidth)
+        flat = ab.T.reshape(-1)  # a view: ab is Fortran-ordered
+        for block in self.blocks:
+            positions, at = block.scatter(self.bandwidth)
+            flat[positions] += block.G.ravel()[at]  # the positions are distinct
+        return ab
+
+    def diagonal(self) -> np.ndarray:
+        """Main diagonal, (n,)."""
+        diag = self.base.ab[0].copy()
+        for block in self.blocks:
+            diag[block.support] += np.diagonal(block.G)
+        return diag
+
+    def __matmul__(self, x: np.ndarray) -> np.ndarray:
+        """``(base + blocks) x`` for x: (n,): one ``dsbmv`` and a small product per block."""
+        y = self.base @ x
+        for block in self.blocks:
+            y[block.support] += np.dot(block.G, x[block.support])
+        return y
+
+    def toarray(self) -> np.ndarray:
+        """Dense (n, n) copy (tests and debugging only)."""
+        return BandedSPD(self.band()).toarray()
 _LOWER_MASKS: dict[int, np.ndarray] = {}
 
 

@@ -19,7 +19,15 @@ factor ``H + nu I = L L^T`` (N&W Sec. 16.2, the range-space method)::
 
 for ``(H + nu I) d + Jh^T lam = -b``, ``Jh d = -c``: one ``dpbtrf``, forward substitutions for
 the columns of W (each from its first non-zero row on) and one solve per right-hand side,
-``O(n u^2 + q n u)``: linear in n.
+``O(n u^2 + q n u)``: linear in n. Two refinements keep it near one banded Cholesky:
+
+* rows of Jh that fix one parameter (the start and goal of a clamped B-spline) are eliminated as
+  Dirichlet rows before the factorization (:class:`~corl.trajectory.solver.factor.KKTStructure`):
+  W and S are formed for the contact rows only;
+* when the rest of the constraints touch one window of columns and H is the cost's constant
+  ``H_J`` plus blocks on it (:class:`~corl.trajectory.solver.banded.BandedSum`), the band is
+  condensed on that window (:mod:`corl.trajectory.solver.condense`): the two sides are
+  factorized once per shift, and an iteration factorizes only the small Schur complement.
 
 When the step leaves the ball, ``nu > 0`` solves ``||u + d(nu)|| = radius``. The new offset
 ``z = u + d`` splits into ``z_min``, the min-norm point of ``Jh z = Jh u - h`` in range(Jh^T)
@@ -34,8 +42,8 @@ constraints cannot be met inside the ball (:class:`Unreachable`).
 
 Glossary
 --------
-H        : (n, n) :class:`~corl.trajectory.solver.banded.BandedSPD`, the Hessian of the Lagrangian (plus
-           ``2 mu Jh^T Jh``); ``H + nu I`` must be positive definite
+H        : (n, n) :class:`~corl.trajectory.solver.banded.BandedSPD` or ``BandedSum``, the Hessian of the
+           Lagrangian (plus ``2 mu Jh^T Jh``); ``H + nu I`` must be positive definite
 g, b, c  : (n,) gradient of the model; right-hand sides (n,) and (q,) of a KKT solve
 h        : (q,) constraint values;  Jh: their Jacobian, given on its support as ``Js`` (q, s)
            with ``Jh[:, support] = Js`` and zeros elsewhere
@@ -50,12 +58,22 @@ import math
 from typing import Callable
 
 import numpy as np
+from scipy.linalg.blas import dtbsv
 from scipy.linalg.lapack import dpotrf, dpotrs, dtbtrs
 
-from corl.errors import NumericalError
-from corl.trajectory.solver.banded import BandedSPD, banded_cholesky
+from corl.trajectory.solver.banded import BandedSPD, BandedSum
+from corl.trajectory.solver.condense import (
+    CondensedFactor,
+    NotCondensable,
+    build_sides,
+    find_sides,
+    from_sides,
+    window_block,
+    window_of,
+)
+from corl.trajectory.solver.factor import IndefiniteHessian, KKTStructure, StepFailure, factorize, structure_of
 
-__all__ = ["StepFailure", "IndefiniteHessian", "Unreachable", "KKTSystem", "constrained_step"]
+__all__ = ["StepFailure", "IndefiniteHessian", "Unreachable", "KKTStructure", "KKTSystem", "structure_of", "constrained_step"]
 
 _DEGENERATE = 1e-14  # S or Jh Jh^T is singular when its smallest pivot^2 is below this x its largest diagonal
 _SECULAR_TOL = 1e-12  # relative accuracy of ||z|| = radius, as corl.trajectory.solver.linalg
@@ -65,14 +83,6 @@ _MAX_INDEFINITE = 2  # indefinite shifts met in the ball iteration before it giv
 _STALL_LIMIT = 2  # Newton steps on nu without getting closer to ||z|| = radius before the ball iteration stops
 
 
-class StepFailure(Exception):
-    """No KKT step at this point (the SQP hands over to the augmented Lagrangian); ``str`` says why."""
-
-
-class IndefiniteHessian(StepFailure):
-    """``H + nu I`` is not positive definite (the constraint curvature outweighs the cost's)."""
-
-
 class Unreachable(StepFailure):
     """The linearized constraints ``Jh d = -h`` have no solution inside the ball."""
 
@@ -80,73 +90,143 @@ class Unreachable(StepFailure):
 class KKTSystem:
     """The KKT matrix ``[[H + shift I, Jh^T], [Jh, 0]]``, factorized by the Schur complement.
 
-    With ``H + shift I = L L^T`` (banded) and ``W = L^{-1} Jh^T`` (n, q), the Schur complement is
-    ``S = W^T W`` and a solve needs one forward and one backward substitution with L. Each column
-    of ``Jh^T`` is zero above its first non-zero, and so is its column of W: the forward
-    substitutions start there (the goal rows of a trajectory cost almost nothing).
+    Rows of Jh that fix one parameter are eliminated first (:class:`~corl.trajectory.solver.factor.KKTStructure`).
+    With the reduced
+    ``H + shift I = L L^T`` (banded) and ``W = L^{-1} Jh_R^T`` (n, r) for the r other rows, the
+    Schur complement is ``S = W^T W`` and a solve needs one forward and one backward substitution
+    with L. Each column of ``Jh_R^T`` is zero above its first non-zero, and so is its column of W:
+    W is kept from row ``k_W`` on, and the forward substitutions start there.
 
     Parameters
     ----------
-    H : (n, n) banded Hessian; ``shift`` : multiple of the identity added to it (>= 0).
+    H : (n, n) banded Hessian, a :class:`~corl.trajectory.solver.banded.BandedSPD` or
+        :class:`~corl.trajectory.solver.banded.BandedSum`; ``shift`` : multiple of the identity added to it (>= 0).
     support : (s,) sorted columns that ``Jh`` touches;  Js : (q, s) ``Jh[:, support]``.
+    structure : the :class:`KKTStructure` of ``Js``'s pattern (computed from ``Js != 0`` if None).
 
     Raises
     ------
     IndefiniteHessian
-        ``H + shift I`` is not positive definite.
+        ``H + shift I`` (reduced) is not positive definite.
     StepFailure
         ``Jh`` has (numerically) dependent rows, so ``S`` is singular.
     """
 
-    __slots__ = ("band", "W", "L", "support", "Js")
+    __slots__ = ("band", "k_W", "W", "L", "st", "top", "fixed_H", "columns", "a_fixed", "Js_rest_fixed", "u", "cond")
 
-    def __init__(self, H: BandedSPD, shift: float, support: np.ndarray, Js: np.ndarray) -> None:
-        try:
-            self.band = banded_cholesky(H.ab, shift, ladder=False, what="Hessian of the Lagrangian").c
-        except NumericalError as err:
-            raise IndefiniteHessian(str(err)) from None
-        top = float(np.max(H.ab[0])) + shift
-        if float(np.min(self.band[0])) ** 2 <= _DEGENERATE * top:  # a rounding-level pivot: singular
-            raise IndefiniteHessian("the Hessian of the Lagrangian is singular (a rounding-level Cholesky pivot)")
-        n, q = H.shape[0], Js.shape[0]
-        touched = Js != 0.0
-        if not np.all(np.any(touched, axis=1)):
+    def __init__(self, H: BandedSPD | BandedSum, shift: float, support: np.ndarray, Js: np.ndarray,
+                 structure: KKTStructure | None = None) -> None:
+        if not Js.any(axis=1).all():
             raise StepFailure("a row of the constraint Jacobian dh/dw is zero here")
-        first = support[np.argmax(touched, axis=1)]  # first non-zero column of each row of Jh
-        W = np.zeros((n, q), order="F")
-        for k, rows in _groups(first, H.bandwidth):  # forward substitution on L[k:, k:]
-            at = support >= k
+        st = self.st = KKTStructure(support, Js != 0.0) if structure is None else structure
+        n, u = H.shape[0], H.bandwidth
+        gather, valid, columns, zero, groups = st.maps(n, u, support)
+        self.u, self.columns, self.cond = u, columns, None
+        if st.fixed_rows.shape[0]:
+            self.a_fixed = Js[st.fixed_rows, st.fixed_at]
+            self.Js_rest_fixed = Js[st.rest_rows[:, None], st.fixed_at] if st.rest_touch_fixed else None  # (r, f)
+        window = window_of(H, st, support, n, u) if type(H) is BandedSum else None
+        sides = None if window is None else find_sides(st, H.base, shift, u)
+        if sides is not None:  # condensation at a kept shift: no band at all
+            M_CC, self.fixed_H, self.top = from_sides(sides, H, st, support, window)
+            self._condense(sides, window, M_CC, Js)
+            return
+        band = H.band()  # a new (u + 1, n) array, factorized in place
+        self.top = top = float(np.max(band[0])) + shift
+        if shift:
+            band[0] += shift
+        if st.fixed_rows.shape[0]:  # Dirichlet rows: keep row f of H + shift I, then decouple it
+            flat = band.T.reshape(-1)  # a view: band is Fortran-ordered
+            self.fixed_H = flat[gather] * valid  # (f, 2u + 1)
+            flat[zero] = 0.0
+            band[0, st.fixed_cols] = top
+        if window is not None:  # one constraint window: condense on it (corl.trajectory.solver.condense)
+            try:
+                sides = build_sides(st, H, shift, band, window, top, support, gather, valid)
+            except NotCondensable:
+                sides = None
+            if sides is not None:
+                self._condense(sides, window, window_block(band, *window), Js)
+                return
+        self.band = factorize(band, top)
+        self._schur(Js, groups)
+
+    def _condense(self, sides, window, M_CC, Js) -> None:
+        st = self.st
+        self.band = self.W = self.L = None
+        self.cond = CondensedFactor(sides, window, M_CC, Js[st.rest_rows[:, None], st.rest_Js_cols], self.top)
+
+    def _schur(self, Js: np.ndarray, groups: list) -> None:
+        """``W = L^{-1} Jh_R^T`` from row ``k_W`` on, by forward substitutions from each group's first
+        row, and the Cholesky factor of ``S = W^T W`` (N&W Sec. 16.2)."""
+        st, band = self.st, self.band
+        n = band.shape[1]
+        self.W = self.L = None
+        self.k_W = n
+        if not groups:
+            return
+        k_W = self.k_W = groups[0][0]  # groups are sorted by where they start
+        W = None
+        for k, rows, offsets, at in groups:
             rhs = np.zeros((n - k, rows.shape[0]), order="F")
-            rhs[support[at] - k] = Js[np.ix_(rows, np.flatnonzero(at))].T
-            W[k:, rows] = _substitute(self.band[:, k:], rhs, "N")
+            rhs[offsets] = Js[st.rest_rows[rows][:, None], at].T
+            x = _substitute(band[:, k:], rhs, "N")
+            if len(groups) == 1 and rows.shape[0] == st.rest_rows.shape[0]:
+                W = x
+                break
+            if W is None:
+                W = np.zeros((n - k_W, st.rest_rows.shape[0]), order="F")
+            W[k - k_W:, rows] = x
         self.W = W
-        S = np.dot(W.T, W)
-        self.L = _cholesky_or_fail(S, "the Schur complement Jh H^{-1} Jh^T")
-        self.support, self.Js = support, Js
+        self.L = _cholesky_or_fail(np.dot(W.T, W), "the Schur complement Jh H^{-1} Jh^T")
 
     def solve(self, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(a (n,), lam (q,))`` with ``(H + shift I) a + Jh^T lam = -b`` and ``Jh a = -c``.
 
-        ``v = L^{-1} b``, ``S lam = c - W^T v``, ``a = -L^{-T} (v + W lam)``.
+        Fixed rows: ``a_f = -c_i / a_i``; the rest: ``v = L^{-1} b'``, ``S lam_R = c' - W^T v``,
+        ``a = -L^{-T} (v + W lam_R)`` with b', c' carrying the fixed columns; then the fixed rows'
+        multipliers from row f: ``a_i lam_i = -((H + shift I) a + b + Jh_R^T lam_R)_f``.
         """
-        v = _substitute(self.band, b[:, None], "N")[:, 0]
-        lam, _ = dpotrs(self.L, c - np.dot(v, self.W), lower=1)
-        a = _substitute(self.band, (v + np.dot(self.W, lam))[:, None], "T")[:, 0]
-        return -a, lam
-
-
-def _groups(first: np.ndarray, width: int) -> list[tuple[int, np.ndarray]]:
-    """Rows of Jh grouped by where they start: ``[(k, rows), ...]`` with every row of a group
-    starting within ``width`` columns after k (one substitution per group; the few zero rows it
-    adds cost less than a LAPACK call)."""
-    order = np.argsort(first, kind="stable")
-    groups: list[tuple[int, list]] = []
-    for i in order.tolist():
-        if groups and first[i] < groups[-1][0] + max(width, 1):
-            groups[-1][1].append(i)
+        st = self.st
+        fixed = st.fixed_rows.shape[0]
+        if fixed:
+            d_fixed = -c[st.fixed_rows] / self.a_fixed
+            b_red = np.bincount(self.columns.ravel(), (self.fixed_H * d_fixed[:, None]).ravel(), b.shape[0])
+            b_red += b  # b + H[:, f] d_f on the free rows
+            b_red[st.fixed_cols] = -self.top * d_fixed
+            c_rest = c[st.rest_rows]
+            if self.Js_rest_fixed is not None:
+                c_rest = c_rest + np.dot(self.Js_rest_fixed, d_fixed)
         else:
-            groups.append((int(first[i]), [i]))
-    return [(k, np.asarray(rows)) for k, rows in groups]
+            b_red, c_rest = b, c
+        if self.cond is not None:
+            a, lam_rest = self.cond.solve(b_red, c_rest)
+            return self._fixed_rows(a, lam_rest, b, c, d_fixed) if fixed else (a, lam_rest)
+        v = dtbsv(self.u, self.band, b_red, lower=1)
+        if self.L is not None:
+            k = self.k_W
+            lam_rest, _ = dpotrs(self.L, c_rest - np.dot(v[k:], self.W), lower=1)
+            v[k:] += np.dot(self.W, lam_rest)
+        else:
+            lam_rest = c_rest[:0]
+        a = dtbsv(self.u, self.band, v, lower=1, trans=1, overwrite_x=1)
+        np.negative(a, out=a)
+        if not fixed:
+            return a, lam_rest
+        return self._fixed_rows(a, lam_rest, b, c, d_fixed)
+
+    def _fixed_rows(self, a, lam_rest, b, c, d_fixed) -> tuple[np.ndarray, np.ndarray]:
+        """The step on the fixed columns and the fixed rows' multipliers, from row f of the KKT equations."""
+        st = self.st
+        a[st.fixed_cols] = d_fixed
+        lam = np.empty(c.shape[0])
+        lam[st.rest_rows] = lam_rest
+        row_f = np.einsum("ij,ij->i", self.fixed_H, a[self.columns])  # ((H + shift I) a)_f
+        row_f += b[st.fixed_cols]
+        if self.Js_rest_fixed is not None:
+            row_f += np.dot(lam_rest, self.Js_rest_fixed)
+        lam[st.fixed_rows] = -row_f / self.a_fixed
+        return a, lam
 
 
 def _substitute(band: np.ndarray, rhs: np.ndarray, trans: str) -> np.ndarray:
@@ -160,14 +240,14 @@ def _substitute(band: np.ndarray, rhs: np.ndarray, trans: str) -> np.ndarray:
 def _cholesky_or_fail(S: np.ndarray, what: str) -> np.ndarray:
     """Lower Cholesky factor of a small SPD matrix S (q, q); StepFailure when S is (nearly) singular."""
     L, info = dpotrf(S, lower=1, clean=1)
-    top = float(np.max(np.diagonal(S))) if S.shape[0] else 0.0
-    if info != 0 or not top > 0.0 or float(np.min(np.diagonal(L))) ** 2 <= _DEGENERATE * top:
+    top = max(S.diagonal().tolist(), default=0.0)
+    if info != 0 or not top > 0.0 or min(L.diagonal().tolist()) ** 2 <= _DEGENERATE * top:
         raise StepFailure(f"{what} is singular: the constraint Jacobian dh/dw has dependent rows here")
     return L
 
 
 def constrained_step(
-    H: BandedSPD,
+    H: BandedSPD | BandedSum,
     g: np.ndarray,
     support: np.ndarray,
     Js: np.ndarray,
@@ -177,6 +257,7 @@ def constrained_step(
     *,
     nu_definite: float | Callable[[], float] = 0.0,
     nu_guess: float = 0.0,
+    structure: KKTStructure | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, float]:
     """Solve ``min g^T d + d^T H d / 2  s.t.  Jh d = -h,  ||u + d|| <= radius`` (see the module docstring).
 
@@ -191,6 +272,8 @@ def constrained_step(
         ball the step is then its boundary point at a multiplier where ``H + nu I`` is definite
         (More & Sorensen); when there is none (the hard case) IndefiniteHessian is raised.
     nu_guess : a first guess of the ball's multiplier (the previous iterate's), tried first.
+    structure : the :class:`KKTStructure` of ``Js``'s pattern (a problem's, cached), or None to
+        derive it from ``Js != 0``.
 
     Returns
     -------
@@ -205,8 +288,10 @@ def constrained_step(
         (:class:`IndefiniteHessian`); ``Jh`` is rank-deficient; or the linearized constraints
         cannot be met inside the ball (:class:`Unreachable`).
     """
+    if structure is None:
+        structure = KKTStructure(support, Js != 0.0)
     if u is None:
-        d, lam = KKTSystem(H, 0.0, support, Js).solve(g, h)
+        d, lam = KKTSystem(H, 0.0, support, Js, structure).solve(g, h)
         return d, lam, None, 0.0
     # A first definite shift: the guess, else 0 (no ball), else nu_definite; lo: the largest indefinite one.
     lo, kkt, failed, tried = 0.0, None, False, set()
@@ -217,7 +302,7 @@ def constrained_step(
             continue
         tried.add(nu)
         try:
-            kkt = KKTSystem(H, nu, support, Js)
+            kkt = KKTSystem(H, nu, support, Js, structure)
             break
         except IndefiniteHessian:
             lo, failed = max(lo, nu), True
@@ -228,7 +313,7 @@ def constrained_step(
     zz = float(np.dot(z, z))
     if nu > 0.0 and zz < radius * radius and lo == 0.0 and nu == nu_guess:  # the step is short: try nu = 0
         try:
-            kkt0 = KKTSystem(H, 0.0, support, Js)
+            kkt0 = KKTSystem(H, 0.0, support, Js, structure)
             kkt, nu = kkt0, 0.0
             d, lam = kkt.solve(g, h)
             z = u + d
@@ -238,7 +323,7 @@ def constrained_step(
     if nu == 0.0 and zz <= radius * radius:
         return d, lam, None, 0.0
     zmin_sq = _min_norm_sq(support, Js, h, u, radius)
-    return _boundary_step(H, g, support, Js, h, u, radius, zmin_sq, nu, kkt, z, lam, lo)
+    return _boundary_step(H, g, support, Js, h, u, radius, zmin_sq, nu, kkt, z, lam, lo, structure)
 
 
 def _min_norm_sq(support, Js, h, u, radius: float) -> float:
@@ -255,7 +340,7 @@ def _min_norm_sq(support, Js, h, u, radius: float) -> float:
     return zmin_sq
 
 
-def _boundary_step(H, g, support, Js, h, u, radius, zmin_sq, nu, kkt, z, lam, lo):
+def _boundary_step(H, g, support, Js, h, u, radius, zmin_sq, nu, kkt, z, lam, lo, structure):
     """More & Sorensen's safeguarded Newton iteration on ``1/||y_null(nu)|| - 1/r_null`` (module
     docstring) from a definite ``nu`` with its KKT solve ``(kkt, z, lam)``; ``||z(nu)||`` falls as
     nu grows. ``lo``/``hi`` bracket the root: below lo the step is too long or H + nu I indefinite
@@ -299,7 +384,7 @@ def _boundary_step(H, g, support, Js, h, u, radius, zmin_sq, nu, kkt, z, lam, lo
                     raise IndefiniteHessian("the trust-region multiplier has no Newton step")
                 nu = 0.5 * (lo + hi)
             try:
-                kkt = KKTSystem(H, nu, support, Js)
+                kkt = KKTSystem(H, nu, support, Js, structure)
                 break
             except IndefiniteHessian:
                 lo, indefinite = nu, indefinite + 1

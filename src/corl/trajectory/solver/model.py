@@ -26,9 +26,14 @@ returning the constant Gauss-Newton Hessian ``2 Jr^T Jr`` (ndarray, scipy.sparse
 constraints touch and H stays banded (factorized by LAPACK ``dpbtrf``).
 
 A problem with such a banded cost may also offer ``equalities_on_support(w)``, returning ``h`` and
-``dh/dw`` as a dense block on the few columns it touches (``(h, support, Js, pairs)``, see
+``dh/dw`` as a dense block on the few columns it touches (``(h, support, Js, pattern)``, see
 :meth:`~corl.trajectory.features.TrajectoryProblem.equalities_on_support`) or None: then no
 sparse Jh is built per iterate (``Iterate.Jh`` is None and ``Iterate.JhJh`` holds ``2 Jh^T Jh``).
+
+A problem without equalities whose residuals are nonlinear but have a banded Jacobian (the phase
+profile of Eq. 10) may offer ``gauss_newton_band(w)``, returning ``(r, 2 Jr^T r, 2 Jr^T Jr)`` with
+the last a :class:`~corl.trajectory.solver.banded.BandedSPD`: the damped Gauss-Newton steps then
+run on banded Cholesky factors with no Jacobian matrix built (``Iterate.Jr`` is None).
 
 A problem may also offer ``equality_curvature(w, nu)``, returning ``sum_i nu_i d^2 h_i / dw^2``
 (a :class:`~corl.trajectory.solver.banded.SupportGram`, ndarray or scipy.sparse, or None): the
@@ -47,7 +52,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from corl.errors import InputError, NumericalError
-from corl.trajectory.solver.banded import BandedSPD, SupportGram
+from corl.trajectory.solver.banded import BandedSPD, SupportGram, SupportPattern
 
 Jacobian = Any  # np.ndarray or scipy.sparse matrix, (rows, n)
 
@@ -70,6 +75,8 @@ class Iterate:
     affine : ``(2 Jr^T Jr, 2 Jr^T b)`` of an affine cost (the problem's ``affine_cost()``), or None.
     curvature : the problem's ``equality_curvature`` (``(w, nu) -> sum_i nu_i d2h_i``), or None.
     JhJh : ``2 Jh^T Jh`` as a :class:`~corl.trajectory.solver.banded.SupportGram`, or None.
+    AT : ``Jr^T`` (n, p) in CSR for an affine cost whose problem gives it (``affine_transpose()``),
+        else None; the cost gradient is then ``2 Jr^T r`` instead of ``H_J w - c``.
     err : ``max |h|`` (0 without constraints); set from ``h``.
     grams : cache of ``(2 Jr^T r, 2 Jr^T Jr, 2 Jh^T Jh)``, filled by :func:`compute_grams` on first
         use and reused while only lam or mu change.
@@ -85,6 +92,7 @@ class Iterate:
     affine: tuple | None = None
     curvature: Callable | None = None
     JhJh: SupportGram | None = None
+    AT: Any = None
     err: float = field(init=False)
     grams: tuple | None = field(default=None, init=False)
 
@@ -118,7 +126,13 @@ def non_finite_error(what: str, w: np.ndarray, hint: str) -> NumericalError:
 
 
 def evaluate_problem(problem, w: np.ndarray) -> Iterate:
+    """The problem at ``w`` (n,): its residuals, equalities and what the strategies reuse."""
     n = w.shape[0]
+    banded_gn = getattr(problem, "gauss_newton_band", None)
+    if banded_gn is not None:
+        pt = _evaluate_banded_gauss_newton(problem, w, banded_gn)
+        if pt is not None:
+            return pt
     r, Jr = checked_pair(problem.residuals(w), n, "residuals", "dr/dw")
     affine = getattr(problem, "affine_cost", None)
     affine = None if affine is None else affine()
@@ -141,13 +155,37 @@ def _evaluate_on_support(problem, w, r, Jr, affine, on_support) -> Iterate | Non
     built. None when the problem could not give its equalities that way (or has none)."""
     if on_support is None:
         return None
-    h, support, Js, pairs = on_support
+    h, support, Js, pattern = on_support
     if h.shape[0] == 0:
         return None
     rr, hh = _finite_sumsq(r, h, w)
-    JhJh = SupportGram(support, 2.0 * (Js.T @ Js), w.shape[0], pairs, Js)
+    if type(pattern) is SupportPattern:  # the problem's constant pattern: the solver's caches live on it
+        JhJh = SupportGram(support, 2.0 * np.dot(Js.T, Js), w.shape[0], pattern.pairs, Js, pattern)
+    else:  # (rows, cols) of the structural non-zeros of Js^T Js
+        JhJh = SupportGram(support, 2.0 * np.dot(Js.T, Js), w.shape[0], pattern, Js)
     curvature = getattr(problem, "equality_curvature", None)
-    return Iterate(w, r, Jr, h, None, rr, hh, affine, curvature, JhJh)
+    transpose = getattr(problem, "affine_transpose", None)
+    return Iterate(w, r, Jr, h, None, rr, hh, affine, curvature, JhJh, None if transpose is None else transpose())
+
+
+def _evaluate_banded_gauss_newton(problem, w, banded_gn) -> Iterate | None:
+    """:func:`evaluate_problem` for a problem without equalities that gives its Gauss-Newton model
+    in band storage, ``gauss_newton_band(w) -> (r (p,), 2 Jr^T r (n,), 2 Jr^T Jr (BandedSPD))`` (e.g.
+    the phase profile of Eq. 10): the model is the Iterate's ``grams``, no Jacobian is formed.
+    None when the problem has equalities (then the usual path)."""
+    n = w.shape[0]
+    h, Jh = checked_pair(problem.equalities(w), n, "equalities", "dh/dw")
+    if h.shape[0]:
+        return None
+    r, g, H = banded_gn(w)
+    if type(H) is not BandedSPD or H.shape != (n, n) or g.shape != (n,):
+        raise InputError(f"gauss_newton_band must return (r, g (n,), H BandedSPD (n, n)) for n = {n}")
+    rr, hh = _finite_sumsq(r, h, w)
+    if not math.isfinite(float(np.dot(g, g))) or not np.isfinite(H.ab).all():
+        raise non_finite_error("gauss_newton_band", w, "check the cost features and the start")
+    pt = Iterate(w, r, None, h, Jh, rr, hh)
+    pt.grams = (g, H, None)
+    return pt
 
 
 def _finite_sumsq(r: np.ndarray, h: np.ndarray, w: np.ndarray) -> tuple[float, float]:
@@ -209,14 +247,18 @@ def compute_grams(pt: Iterate) -> tuple:
     ``(G00, G01, G11)``; arrays otherwise.
     """
     Jr, Jh, q = pt.Jr, pt.Jh, pt.h.shape[0]
-    if pt.affine is not None:  # r = Jr w - b: constant 2 Jr^T Jr and gradient 2 Jr^T Jr w - 2 Jr^T b
+    if pt.affine is not None:  # r = Jr w - b: constant 2 Jr^T Jr and gradient 2 Jr^T r = 2 Jr^T Jr w - 2 Jr^T b
         H, c = pt.affine
         JhJh = None
         if pt.JhJh is not None:
             JhJh = pt.JhJh
         elif q:
             JhJh = SupportGram.from_jacobian(Jh, 2.0) if type(H) is BandedSPD else 2.0 * (Jh.T @ Jh)
-        grams = (np.asarray(H @ pt.w, dtype=float).ravel() - c, H, JhJh)
+        if pt.AT is not None:  # 2 A^T r: A's few non-zeros instead of the band of H (Eq. 9: kron(S, I))
+            gJ = pt.AT @ (2.0 * pt.r)
+        else:
+            gJ = np.asarray(H @ pt.w, dtype=float).ravel() - c
+        grams = (gJ, H, JhJh)
     elif type(Jr) is not np.ndarray:  # scipy.sparse
         grams = (
             np.asarray(Jr.T @ (2.0 * pt.r), dtype=float).ravel(),

@@ -46,8 +46,8 @@ import numpy as np
 from scipy.linalg.blas import dsbmv
 
 from corl.errors import NumericalError
-from corl.trajectory.solver.banded import BandedSPD, SupportGram
-from corl.trajectory.solver.kkt import IndefiniteHessian, StepFailure, constrained_step
+from corl.trajectory.solver.banded import BandedSPD, BandedSum, SupportGram
+from corl.trajectory.solver.kkt import IndefiniteHessian, StepFailure, constrained_step, structure_of
 from corl.trajectory.solver.model import NOISE, Iterate, compute_grams, max_diagonal, sumsq
 from corl.trajectory.solver.problem import SolverConfig, SolverMethod
 from corl.trajectory.solver.state import SolveState
@@ -74,28 +74,36 @@ def sqp_applies(pt: Iterate, config: SolverConfig) -> bool:
 
 
 class KKTModel:
-    """The KKT model at one iterate: ``H`` (banded), ``g``, ``gJ`` and the constraint Jacobian's support.
+    """The KKT model at one iterate: ``H`` (a :class:`~corl.trajectory.solver.banded.BandedSum`, the
+    banded ``H_J`` plus the constraint blocks), ``g``, ``gJ`` and the constraint Jacobian's support.
 
     ``curvature_block`` is the dense block of ``sum_i lam_i d2h_i`` on its columns (or None);
     :meth:`nu_definite` derives from it, when a ball step asks, a shift that makes ``H`` definite.
     """
 
-    __slots__ = ("H", "g", "gJ", "support", "Js", "curvature_block")
+    __slots__ = ("H", "g", "gJ", "support", "Js", "curvature_block", "structure")
 
     def __init__(self, pt: Iterate, lam: np.ndarray, mu: float, curvature: bool, ball: bool) -> None:
         H_J, _ = pt.affine
         gJ, _, gram = pt.grams or compute_grams(pt)  # gJ = H_J w - c; gram = 2 Jh^T Jh with Js = Jh[:, support]
         self.support, self.Js, self.gJ = gram.support, gram.Js, gJ
-        self.H = (mu * gram).added_to(H_J)  # H_J + 2 mu Jh^T Jh, a new banded matrix
+        self.structure = structure_of(gram)  # which rows fix a parameter (cached per problem)
+        G = mu * gram.G  # H = H_J + 2 mu Jh^T Jh (+ curvature), added into the band when factorized
+        extra = ()
         self.curvature_block = None
         if curvature and pt.curvature is not None and np.any(lam):  # + sum_i lam_i d2h_i (Newton)
             C = pt.curvature(pt.w, lam)
             if C is not None:
                 if type(C) is not SupportGram:
                     raise StepFailure("the constraint curvature is no SupportGram; it cannot join the banded Hessian")
-                if not C.add_into(self.H):
-                    self.H = C.added_to(self.H)
+                at = gram.covers(C)
+                if at is not None:  # on the constraint columns: one block
+                    G[at[:, None], at] += C.G
+                else:
+                    extra = (C,)
                 self.curvature_block = C.G if ball and C.G.shape[0] else None  # only a ball step uses it
+        block = SupportGram(gram.support, G, gram.n, gram.pairs, gram.Js, gram.pattern)
+        self.H = BandedSum(H_J, (block,) + extra)
         self.g = gJ.copy()
         self.g[self.support] += (2.0 * mu) * np.dot(pt.h, self.Js)  # + 2 mu Jh^T h
 
@@ -122,7 +130,7 @@ def _step(pt: Iterate, lam: np.ndarray, mu: float, mu_max: float, u, radius: flo
         try:
             d, lam_plus, z, nu = constrained_step(
                 model.H, model.g, model.support, model.Js, pt.h, u, radius,
-                nu_definite=model.nu_definite, nu_guess=nu_guess,
+                nu_definite=model.nu_definite, nu_guess=nu_guess, structure=model.structure,
             )
             return model, d, lam_plus, z, nu, weight
         except IndefiniteHessian:
@@ -155,10 +163,10 @@ def sqp(state: SolveState, pt: Iterate) -> tuple[Iterate, np.ndarray | None, boo
         u = None if state.center is None else pt.w - state.center
         try:
             model, d, lam_plus, z, nu, mu = _step(pt, lam, mu, _MU_MAX * mu0, u, state.radius, nu, True)
-            curvature = _curvature(model, d, nu)
+            curvature = _curvature(model, d, lam_plus, pt.h, u, nu)
             if not curvature > 0.0:  # negative curvature along a ball step: no descent guarantee, take Gauss-Newton
                 model, d, lam_plus, z, nu, _ = _step(pt, lam, mu, _MU_MAX * mu0, u, state.radius, nu, False)
-                curvature = _curvature(model, d, nu)
+                curvature = _curvature(model, d, lam_plus, pt.h, u, nu)
         except StepFailure as err:
             return pt, None, False, str(err)
         dn = math.sqrt(sumsq(d))
@@ -180,15 +188,15 @@ def sqp(state: SolveState, pt: Iterate) -> tuple[Iterate, np.ndarray | None, boo
         if pt.hh > 0.0:
             rho = max(rho, 2.0 * (slope + 0.5 * curvature) / pt.hh)
         slope -= rho * pt.hh
-        noise = NOISE * (pt.rr + abs(lin) + 0.5 * rho * pt.hh) + rounding.cost(pt)  # of phi
-        if feasible and -slope <= noise:
+        noise = _MeritNoise(NOISE * (pt.rr + abs(lin) + 0.5 * rho * pt.hh), rounding, pt)  # of phi, when asked
+        if feasible and -slope <= noise():
             how = "the predicted decrease of the merit function is below its rounding error"
             return pt, lam_plus, True, _converged_status(cfg, pt, how)
         found = _line_search(state, pt, lam, dlam, d, z, slope, rho, noise) if slope < 0.0 else None
         if found is None:
             if state.iterations >= cfg.max_iterations:
                 return pt, lam, False, _budget_status(cfg, pt)
-            if feasible and -slope <= _NOISE_MARGIN * noise:
+            if feasible and -slope <= _NOISE_MARGIN * noise():
                 return pt, lam_plus, True, _converged_status(cfg, pt, "the merit function is flat to rounding")
             return pt, None, False, (
                 f"the line search on the merit function failed ({_MAX_BACKTRACKS} halvings of the step, "
@@ -199,14 +207,20 @@ def sqp(state: SolveState, pt: Iterate) -> tuple[Iterate, np.ndarray | None, boo
         pt, lam = trial, lam + alpha * dlam
 
 
-def _curvature(model: KKTModel, d: np.ndarray, nu: float) -> float:
-    """``d^T (H + nu I / 2) d``: positive when the step is a descent direction of the merit function."""
-    return float(np.dot(d, model.H @ d)) + 0.5 * nu * float(np.dot(d, d))
+def _curvature(model: KKTModel, d: np.ndarray, lam_plus: np.ndarray, h: np.ndarray, u, nu: float) -> float:
+    """``d^T (H + nu I / 2) d``: positive when the step is a descent direction of the merit function.
+
+    From the KKT equations of the step, ``(H + nu I) d + Jh^T lam+ = -(g + nu u)`` and ``Jh d = -h``:
+    ``d^T H d = -(g + nu u)^T d + h^T lam+ - nu d^T d`` (dot products instead of a product with H;
+    the KKT residual is at the rounding level of ``|g| |d|``, far below ``d^T H d`` until d itself is)."""
+    dd = float(np.dot(d, d))
+    gd = float(np.dot(model.g, d)) + (nu * float(np.dot(u, d)) if nu else 0.0)
+    return -gd + float(np.dot(h, lam_plus)) - 0.5 * nu * dd
 
 
-def _line_search(state: SolveState, pt: Iterate, lam, dlam, d, z, slope: float, rho: float, noise: float):
+def _line_search(state: SolveState, pt: Iterate, lam, dlam, d, z, slope: float, rho: float, noise: _MeritNoise):
     """Backtracking from ``alpha = 1`` until ``phi`` decreases by ``_ARMIJO alpha phi'(0)``
-    (``slope``), or - when that is below its rounding error ``noise`` - does not rise beyond it.
+    (``slope``), or - when that is below its rounding error ``noise()`` - does not rise beyond it.
 
     Returns ``(trial point, alpha)``, or None when the halvings or the iteration budget ran out.
     """
@@ -219,10 +233,25 @@ def _line_search(state: SolveState, pt: Iterate, lam, dlam, d, z, slope: float, 
         trial = state.evaluate(state.new_point(pt.w, d, z) if alpha == 1.0 else pt.w + alpha * d)
         lam_t = lam + alpha * dlam
         phi_t = trial.rr + float(np.dot(lam_t, trial.h)) + 0.5 * rho * trial.hh
-        if phi_t <= phi + _ARMIJO * alpha * slope or (-alpha * slope <= noise and phi_t <= phi + noise):
+        if phi_t <= phi + _ARMIJO * alpha * slope or (-alpha * slope <= noise() and phi_t <= phi + noise()):
             return trial, alpha
         alpha *= 0.5
     return None
+
+
+class _MeritNoise:
+    """The rounding error of the merit function at ``pt``: ``base`` plus that of ``J`` (a product
+    with ``|A|``), computed on the first call only - most iterations never ask for it."""
+
+    __slots__ = ("base", "rounding", "pt", "value")
+
+    def __init__(self, base: float, rounding: _Rounding, pt: Iterate) -> None:
+        self.base, self.rounding, self.pt, self.value = base, rounding, pt, None
+
+    def __call__(self) -> float:
+        if self.value is None:
+            self.value = self.base + self.rounding.cost(self.pt)
+        return self.value
 
 
 class _Rounding:
@@ -234,19 +263,23 @@ class _Rounding:
     """
 
     def __init__(self, pt: Iterate) -> None:
-        H_J, c = pt.affine
-        self.abs_ab = np.asfortranarray(np.abs(H_J.ab))
-        self.abs_c = np.abs(c)
-        self.abs_A = abs(pt.Jr) if type(pt.Jr) is not np.ndarray else np.abs(pt.Jr)
+        self.pt0 = pt  # |H_J|, |c| and |A| are taken from it on first use
+        self.abs_ab = self.abs_c = self.abs_A = None
 
     def gradient(self, w: np.ndarray) -> float:
         """Norm of the rounding error of ``gJ`` at w."""
+        if self.abs_ab is None:
+            H_J, c = self.pt0.affine
+            self.abs_ab, self.abs_c = np.asfortranarray(np.abs(H_J.ab)), np.abs(c)
         terms = dsbmv(self.abs_ab.shape[0] - 1, 1.0, self.abs_ab, np.abs(w)) + self.abs_c
         return _EPS * math.sqrt(sumsq(terms))
 
     def cost(self, pt: Iterate) -> float:
         """Rounding error of ``J = r^T r`` at pt: ``2 |r|^T dr`` with ``dr = eps (2 |A| |w| + |r|)``
         (``|b| <= |A| |w| + |r|``)."""
+        if self.abs_A is None:
+            Jr = self.pt0.Jr
+            self.abs_A = abs(Jr) if type(Jr) is not np.ndarray else np.abs(Jr)
         abs_r = np.abs(pt.r)
         dr = 2.0 * np.asarray(self.abs_A @ np.abs(pt.w)).ravel() + abs_r
         return 2.0 * _EPS * float(np.dot(abs_r, dr))
