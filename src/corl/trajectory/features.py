@@ -104,6 +104,17 @@ class LinearFeature:
     def __call__(self, w: np.ndarray) -> tuple[np.ndarray, sp.csr_matrix]:
         return self.A @ w - self.b, self.A
 
+    def with_b(self, b: np.ndarray) -> LinearFeature:
+        """``A w - b`` for another b (m,): A, its gram and transpose shared (computed at most once)."""
+        other = copy.copy(self)
+        other.b = np.asarray(b, dtype=float).ravel()
+        if other.b.shape != (self.A.shape[0],):
+            raise InputError(f"{self.name}: b has shape {other.b.shape}, expected ({self.A.shape[0]},)")
+        self.gram()
+        self.transpose()
+        other._gram, other._transpose = self._gram, self._transpose
+        return other
+
 
 def _weights(weights, count: int, what: str) -> np.ndarray:
     """Per-time weights v_t (count,), from None (all 1), a scalar or a vector; checked >= 0."""
@@ -256,6 +267,8 @@ class TrajectoryProblem:
         self._eq_linear, self._eq_other = self._split(equalities, "equality")
         self._affine: tuple | None = None
         self._support_layout: _SupportLayout | None | bool = False  # False: not built yet
+        self._curvature_layout: tuple | None = None  # equality_curvature's scatter of its blocks
+        self._metrics: dict = {}  # distance_problem's cost per metric (shared by with_costs/with_targets copies)
 
     def _split(self, features: Sequence, what: str) -> tuple[LinearFeature | None, tuple]:
         for f in features:
@@ -336,12 +349,16 @@ class TrajectoryProblem:
             return None
         if len(blocks) == 1:  # one contact time: its columns are already sorted and distinct
             return SupportGram.dense_block(blocks[0][0], blocks[0][1], self.n)
-        support = np.unique(np.concatenate([cols for cols, _ in blocks]))
-        G = np.zeros((support.shape[0], support.shape[0]))
-        for cols, block in blocks:
-            at = np.searchsorted(support, cols)
-            G[np.ix_(at, at)] += block
-        return SupportGram(support, G, self.n)
+        columns = np.concatenate([cols for cols, _ in blocks])
+        layout = self._curvature_layout
+        if layout is None or not np.array_equal(layout[0], columns):  # constant per problem: built once
+            layout = self._curvature_layout = _curvature_layout(columns, [cols.shape[0] for cols, _ in blocks])
+        _, support, flat, pairs = layout
+        s = support.shape[0]
+        # the blocks summed into G (s, s) in their order (as G[ix_(at, at)] += block, one after the other)
+        values = np.concatenate([block.ravel() for _, block in blocks])
+        G = np.bincount(flat, values, s * s).reshape(s, s)
+        return SupportGram(support, G, self.n, pairs)
 
     def with_costs(self, costs: Sequence) -> TrajectoryProblem:
         """The same equalities under other cost features (e.g. Eq. 18's ``||L (w - w*)||^2``).
@@ -356,13 +373,36 @@ class TrajectoryProblem:
         other._affine = None
         return other
 
+    def with_targets(self, targets: Sequence) -> TrajectoryProblem:
+        """The same problem with its nonlinear equalities at other targets: ``targets[i]`` for the
+        i-th (a :class:`TaskSpaceFeature`, :meth:`TaskSpaceFeature.with_targets`). The cost, the linear
+        equalities and the layout of the Jacobian on its support (so the solver's caches on its
+        pattern) are shared: a task's Eq. 6 at a new theta without rebuilding it."""
+        if len(targets) != len(self._eq_other):
+            raise InputError(f"{len(targets)} targets for {len(self._eq_other)} nonlinear equality features")
+        if self._support_layout is False:
+            self._support_layout = _SupportLayout.build(self._eq_linear, self._eq_other)
+        self.affine_cost()  # computed once, shared
+        other = copy.copy(self)
+        other._eq_other = tuple(f.with_targets(t) for f, t in zip(self._eq_other, targets))
+        return other
+
     def distance_problem(self, w_star: np.ndarray, metric=None) -> TrajectoryProblem:
         """Eq. 18 under these equalities: the cost ``||L (w - w*)||^2``, ``L`` the sparse ``metric``
         (rows, n) or the identity; w_star: (n,). Linear, so the SQP solver takes it on its banded path."""
-        L = sp.identity(self.n, format="csr") if metric is None else sp.csr_matrix(metric, dtype=float)
-        if L.shape[1] != self.n:
-            raise InputError(f"the metric of Eq. 18 has shape {L.shape}, expected (rows, {self.n})")
-        return self.with_costs([LinearFeature(L, L @ np.asarray(w_star, dtype=float), name="distance to w* (Eq. 18)")])
+        keep = metric is None or sp.issparse(metric)  # a task's constant metric: L, its gram and transpose once
+        found = self._metrics.get(id(metric)) if keep else None
+        if found is None or found[0] is not metric:
+            L = sp.identity(self.n, format="csr") if metric is None else sp.csr_matrix(metric, dtype=float)
+            if L.shape[1] != self.n:
+                raise InputError(f"the metric of Eq. 18 has shape {L.shape}, expected (rows, {self.n})")
+            if len(self._metrics) >= 4:
+                self._metrics.clear()
+            found = (metric, LinearFeature(L, name="distance to w* (Eq. 18)"))
+            if keep:
+                self._metrics[id(metric)] = found
+        distance = found[1]
+        return self.with_costs([distance.with_b(distance.A @ np.asarray(w_star, dtype=float))])
 
     def cost(self, w: np.ndarray) -> float:
         """``J(w) = r^T r`` (Eq. 7)."""
@@ -392,6 +432,21 @@ class TrajectoryProblem:
                 raise NumericalError("the linear cost features contain NaN or inf")
             self._affine = (H, c)
         return self._affine
+
+
+def _curvature_layout(columns: np.ndarray, sizes: list[int]) -> tuple:
+    """``(columns, support (s,), flat, pairs)`` for blocks on the concatenated ``columns`` (sum of
+    ``sizes``): ``flat`` the positions of the blocks' entries in ``G.ravel()`` (G: (s, s)), ``pairs``
+    the lower-triangle entries some block touches (the structural pattern of their sum)."""
+    support = np.unique(columns)
+    s = support.shape[0]
+    flat, touched, start = [], np.zeros((s, s), dtype=bool), 0
+    for size in sizes:
+        at = np.searchsorted(support, columns[start : start + size])
+        flat.append((at[:, None] * s + at[None, :]).ravel())
+        touched[np.ix_(at, at)] = True
+        start += size
+    return columns, support, np.concatenate(flat), np.nonzero(np.tril(touched))
 
 
 class _SupportLayout:

@@ -14,6 +14,7 @@ t_k       : contact time(s), (c,); ``targets`` the task-space point(s) there, (c
 
 from __future__ import annotations
 
+import copy
 from typing import Callable
 
 import numpy as np
@@ -96,6 +97,19 @@ class TaskSpaceFeature:
     @property
     def dim(self) -> int:
         return self.targets.shape[0] * self.d
+
+    def with_targets(self, targets) -> TaskSpaceFeature:
+        """The same feature (fk, times, Jacobian pattern, fk's cache) at other targets, (c, d) or (d,):
+        a shallow copy, nothing rebuilt (a task's Eq. 6 at a new theta moves only its targets)."""
+        c = self.targets.shape[0]
+        targets = np.asarray(targets, dtype=float)
+        if targets.ndim == 1:
+            targets = np.broadcast_to(targets, (c, targets.shape[0]))
+        if targets.shape != self.targets.shape or not np.all(np.isfinite(targets)):
+            raise InputError(f"targets have shape {targets.shape}, expected finite ({self.d},) or {self.targets.shape}")
+        other = copy.copy(self)
+        other.targets = targets.copy()
+        return other
 
     def configurations(self, w: np.ndarray) -> np.ndarray:
         """``xi(w, t_k)`` (c, Q)."""

@@ -184,9 +184,9 @@ class DoorTask:
         """Residuals of Eq. 9 (squared accelerations), sparse Jacobian (K-1) 8 x n."""
         return self._cost.residuals(w)
 
-    def _fk(self, wp, theta):
+    def _fk(self, wp, theta=None):
         """Eq. 6 at one contact: contact point (3,), palm orientation error (3,, weighted; the
-        small-angle Jacobian, exact at the target), gripper width (1,)."""
+        small-angle Jacobian, exact at the target), gripper width (1,); theta (unused) moves only the targets."""
         from corl.mujoco import coordinate_feature, orientation_feature, position_feature, stack
 
         kin = self.kin
@@ -207,14 +207,18 @@ class DoorTask:
         key = np.asarray(theta, dtype=float).tobytes()
         problem = self._constraints.get(key)
         if problem is None:
-            q0 = self._start  # the first control point is the start configuration (clamped)
-            eqs = [configuration_feature(self.spline, 0.0, q0)]
-            for wp in self.contacts:
-                eqs.append(TaskSpaceFeature(self.spline, self._fk(wp, theta), [wp.time], self._targets(wp, theta)))
-            problem = TrajectoryProblem(self.spline.n, costs=[self._acceleration], equalities=eqs)
+            template = self._constraints.get(b"")  # theta moves only the targets: the features are built once
+            if template is None:
+                q0 = self._start  # the first control point is the start configuration (clamped)
+                eqs = [configuration_feature(self.spline, 0.0, q0)]
+                for wp in self.contacts:
+                    eqs.append(TaskSpaceFeature(self.spline, self._fk(wp), [wp.time], self._targets(wp, theta)))
+                template = TrajectoryProblem(self.spline.n, costs=[self._acceleration], equalities=eqs)
+            problem = template.with_targets([self._targets(wp, theta) for wp in self.contacts])
             if len(self._constraints) > 64:
                 self._constraints.clear()
             self._constraints[key] = problem
+            self._constraints[b""] = template
         return problem
 
     def trajectory_problem(self, theta: np.ndarray) -> TrajectoryProblem:

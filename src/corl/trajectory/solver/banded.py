@@ -130,13 +130,58 @@ class SupportPattern:
     derived : dict, the solver's caches (keyed by name).
     """
 
-    __slots__ = ("support", "touched", "pairs", "derived")
+    __slots__ = ("support", "touched", "pairs", "derived", "_batches")
 
     def __init__(self, support: np.ndarray, touched: np.ndarray) -> None:
         self.support, self.touched = support, touched
         t = touched.astype(float)
         self.pairs = np.nonzero(np.tril(t.T @ t))  # structural pattern of J^T J
         self.derived: dict = {}
+        self._batches: list | None | bool = False  # gram()'s row groups (False: not worked out yet)
+
+    def gram(self, Js: np.ndarray) -> np.ndarray:
+        """``Js^T Js`` (s, s) for Js (q, s) with this pattern: rows that touch the same columns form a
+        group, and each group's small ``B^T B`` (B: its rows on its columns) is added into place
+        (one batched product per group size), instead of one dense product over every (zero) entry.
+        The dense product when the groups would not save much."""
+        batches = self._batches
+        if batches is False:
+            batches = self._batches = _row_batches(self.touched)
+        if batches is None:
+            return np.dot(Js.T, Js)
+        s = Js.shape[1]
+        parts = [np.matmul(B.transpose(0, 2, 1), B).ravel() for B in (Js[rows, cols] for rows, cols, _ in batches)]
+        flat = self.derived.get("gram_flat")
+        if flat is None:
+            flat = self.derived["gram_flat"] = np.concatenate([f for _, _, f in batches])
+        return np.bincount(flat, np.concatenate(parts) if len(parts) > 1 else parts[0], s * s).reshape(s, s)
+
+
+def _row_batches(touched: np.ndarray) -> list | None:
+    """Rows of a pattern (q, s) grouped by the columns they touch, batched by group size:
+    ``[(rows (g, r, 1), cols (g, 1, c), flat (g c c,)), ...]`` (``Js[rows, cols]``: the groups' blocks
+    (g, r, c); ``flat``: where their ``B^T B`` go in a raveled (s, s)); None when the groups cover
+    more than a quarter of the dense product's work."""
+    q, s = touched.shape
+    if q == 0 or s == 0:
+        return None
+    keys, inverse = np.unique(touched, axis=0, return_inverse=True)
+    inverse = inverse.ravel()
+    by_size: dict = {}
+    for g in range(keys.shape[0]):
+        rows, cols = np.flatnonzero(inverse == g), np.flatnonzero(keys[g])
+        if cols.shape[0]:
+            by_size.setdefault((rows.shape[0], cols.shape[0]), []).append((rows, cols))
+    work = sum(len(groups) * r * c * c for (r, c), groups in by_size.items())
+    if 4 * work > q * s * s:
+        return None
+    batches = []
+    for groups in by_size.values():
+        rows = np.stack([r for r, _ in groups])[:, :, None]
+        cols = np.stack([c for _, c in groups])[:, None, :]
+        flat = (cols.transpose(0, 2, 1) * s + cols).ravel()
+        batches.append((rows, cols, flat))
+    return batches
 
 
 class SupportGram:

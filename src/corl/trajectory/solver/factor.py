@@ -56,7 +56,7 @@ class KKTStructure:
     support : (s,) sorted columns of ``Jh``;  touched : (q, s) bool, its structural non-zeros.
     """
 
-    __slots__ = ("fixed_rows", "fixed_at", "fixed_cols", "rest_rows", "rest_first", "rest_Js_cols",
+    __slots__ = ("fixed_rows", "fixed_at", "fixed_cols", "rest_rows", "rest_first", "rest_last", "rest_Js_cols",
                  "rest_touch_fixed", "window", "sides", "_maps")
 
     def __init__(self, support: np.ndarray, touched: np.ndarray) -> None:
@@ -76,6 +76,8 @@ class KKTStructure:
         self.rest_Js_cols = np.setdiff1d(np.arange(support.shape[0]), self.fixed_at)  # positions kept
         # first non-zero column of each reduced row (n for a row left empty: S is then singular)
         self.rest_first = np.where(rest.any(axis=1), support[np.argmax(rest, axis=1)], np.iinfo(np.intp).max)
+        last = rest.shape[1] - 1 - np.argmax(rest[:, ::-1], axis=1) if rest.shape[1] else np.zeros(0, dtype=np.intp)
+        self.rest_last = np.where(rest.any(axis=1), support[last] if rest.shape[1] else last, -1)  # its last one
         # the non-fixed columns, when one contiguous window (k, s): see corl.trajectory.solver.condense
         free = support[self.rest_Js_cols]
         contiguous = free.shape[0] and int(free[-1] - free[0]) + 1 == free.shape[0] and self.rest_rows.shape[0]
@@ -110,7 +112,8 @@ class KKTStructure:
         zero = np.unique(gather[valid & (offset != 0)])
         groups = []
         for k, rows in start_groups(self.rest_first, u):
-            at = self.rest_Js_cols[support[self.rest_Js_cols] >= k]
+            cols = support[self.rest_Js_cols]  # the group's rows touch columns k .. their last one only
+            at = self.rest_Js_cols[(cols >= k) & (cols <= int(self.rest_last[rows].max()))]
             groups.append((k, rows, support[at] - k, at))
         return gather, valid.astype(float), columns, zero, groups
 

@@ -160,7 +160,7 @@ def _evaluate_on_support(problem, w, r, Jr, affine, on_support) -> Iterate | Non
         return None
     rr, hh = _finite_sumsq(r, h, w)
     if type(pattern) is SupportPattern:  # the problem's constant pattern: the solver's caches live on it
-        JhJh = SupportGram(support, 2.0 * np.dot(Js.T, Js), w.shape[0], pattern.pairs, Js, pattern)
+        JhJh = SupportGram(support, 2.0 * pattern.gram(Js), w.shape[0], pattern.pairs, Js, pattern)
     else:  # (rows, cols) of the structural non-zeros of Js^T Js
         JhJh = SupportGram(support, 2.0 * np.dot(Js.T, Js), w.shape[0], pattern, Js)
     curvature = getattr(problem, "equality_curvature", None)

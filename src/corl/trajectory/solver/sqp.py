@@ -97,7 +97,9 @@ class KKTModel:
                 if type(C) is not SupportGram:
                     raise StepFailure("the constraint curvature is no SupportGram; it cannot join the banded Hessian")
                 at = gram.covers(C)
-                if at is not None:  # on the constraint columns: one block
+                if at is not None and at.shape[0] and int(at[-1] - at[0]) + 1 == at.shape[0]:  # one window of them
+                    G[at[0] : at[-1] + 1, at[0] : at[-1] + 1] += C.G
+                elif at is not None:  # on the constraint columns: one block
                     G[at[:, None], at] += C.G
                 else:
                     extra = (C,)
