@@ -297,3 +297,23 @@ def test_condensation_refuses_an_indefinite_window_and_steps_aside_near_the_ends
     a, _ = kkt.solve(b, c)
     K = np.block([[dense2, Jh.T], [Jh, np.zeros((6, 6))]])
     np.testing.assert_allclose(a, np.linalg.solve(K, -np.concatenate([b, c]))[:60], rtol=1e-9, atol=1e-10)
+
+
+@pytest.mark.parametrize("order", [[0, 1, 2, 3, 4, 5], [4, 0, 5, 2, 1, 3]])
+def test_schur_complement_with_interleaved_row_groups_matches_the_dense_kkt(order):
+    """Contact rows in groups by where they start (one forward substitution each), listed in an order
+    that makes a group's rows non-consecutive: W is filled per group all the same."""
+    Hb, H = banded_hessian(3)
+    rng = np.random.default_rng(4)
+    spans = [(0, 2), (5, 7), (6, 8), (25, 27), (26, 28), (38, 40)]
+    Jh = np.zeros((len(spans), N))
+    for i, (a, b) in enumerate(spans[j] for j in order):
+        Jh[i, a:b] = rng.normal(size=b - a)
+    support = np.flatnonzero(Jh.any(axis=0))
+    Js = Jh[:, support]
+    Hb_aug = (1.0 * BandedSPD.from_sparse(sp.csr_matrix(Jh.T @ Jh))) + Hb
+    b, c = rng.normal(size=N), rng.normal(size=Jh.shape[0])
+    a, lam = KKTSystem(Hb_aug, 0.2, support, Js).solve(b, c)
+    d_ref, lam_ref = dense_kkt(H + Jh.T @ Jh, Jh, b, c, nu=0.2, u=np.zeros(N))
+    np.testing.assert_allclose(a, d_ref, rtol=1e-9, atol=1e-10 * np.abs(d_ref).max())
+    np.testing.assert_allclose(lam, lam_ref, rtol=1e-9, atol=1e-10 * np.abs(lam_ref).max())

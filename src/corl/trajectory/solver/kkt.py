@@ -166,17 +166,19 @@ class KKTSystem:
         if not groups:
             return
         k_W = self.k_W = groups[0][0]  # groups are sorted by where they start
-        W = None
-        for k, rows, offsets, at in groups:
-            rhs = np.zeros((n - k, rows.shape[0]), order="F")
-            rhs[offsets] = Js[st.rest_rows[rows][:, None], at].T
-            x = _substitute(band[:, k:], rhs, "N")
-            if len(groups) == 1 and rows.shape[0] == st.rest_rows.shape[0]:
-                W = x
-                break
-            if W is None:
-                W = np.zeros((n - k_W, st.rest_rows.shape[0]), order="F")
-            W[k - k_W:, rows] = x
+        plan = _schur_plan(st, n, band.shape[0] - 1, Js.shape[1], groups)
+        Js_flat = Js.ravel()
+        if len(plan) == 1 and plan[0][5]:  # one group of all rows (in the group's order, as x comes out)
+            k, _, _, dest, source, _ = plan[0]
+            W = np.zeros((n - k, st.rest_rows.shape[0]), order="F")
+            W.T.reshape(-1)[dest] = Js_flat[source]
+            W = _substitute(band[:, k:], W, "N", True)
+        else:
+            W = np.zeros((n - k_W, st.rest_rows.shape[0]), order="F")
+            for k, cols, m, dest, source, _ in plan:
+                rhs = np.zeros((m, n - k))  # (m, n - k): the transpose of an F-ordered rhs
+                rhs.reshape(-1)[dest] = Js_flat[source]
+                W[k - k_W:, cols] = _substitute(band[:, k:], rhs.T, "N", True)
         self.W = W
         self.L = _cholesky_or_fail(np.dot(W.T, W), "the Schur complement Jh H^{-1} Jh^T")
 
@@ -229,9 +231,30 @@ class KKTSystem:
         return a, lam
 
 
-def _substitute(band: np.ndarray, rhs: np.ndarray, trans: str) -> np.ndarray:
-    """``L^{-1} rhs`` (trans "N") or ``L^{-T} rhs`` ("T") for a lower banded L in band storage (LAPACK ``dtbtrs``)."""
-    x, info = dtbtrs(band, rhs, uplo="L", trans=trans)
+def _schur_plan(st: KKTStructure, n: int, u: int, s: int, groups: list) -> list:
+    """Per group of :meth:`KKTStructure.maps`, where its entries of ``Js`` (q, s) go in its
+    right-hand side: ``[(k, columns of W (a slice when consecutive), m, dest, source, all rows)]``
+    with ``rhs[dest] = Js.ravel()[source]`` for the Fortran-ordered rhs (n - k, m) flattened.
+    Cached on ``st`` per band size and width (the groups' keys) and width s of Js."""
+    key = ("schur", n, u, s)
+    found = st._maps.get(key)
+    if found is None:
+        found = []
+        for k, rows, offsets, at in groups:
+            m = rows.shape[0]
+            consecutive = np.array_equal(rows, np.arange(rows[0], rows[0] + m))
+            dest = (offsets[:, None] + (n - k) * np.arange(m)[None, :]).ravel()  # rhs[offsets[a], b]
+            source = (st.rest_rows[rows][None, :] * s + at[:, None]).ravel()  # Js[rest_rows[rows[b]], at[a]]
+            cols = slice(int(rows[0]), int(rows[0]) + m) if consecutive else rows  # a slice writes W faster
+            found.append((k, cols, m, dest, source, m == st.rest_rows.shape[0]))
+        st._maps[key] = found
+    return found
+
+
+def _substitute(band: np.ndarray, rhs: np.ndarray, trans: str, overwrite: bool = False) -> np.ndarray:
+    """``L^{-1} rhs`` (trans "N") or ``L^{-T} rhs`` ("T") for a lower banded L in band storage (LAPACK
+    ``dtbtrs``); ``overwrite``: rhs (Fortran-ordered) may be overwritten with the result."""
+    x, info = dtbtrs(band, rhs, uplo="L", trans=trans, overwrite_b=overwrite)
     if info != 0:
         raise IndefiniteHessian(f"the banded Cholesky factor is singular (dtbtrs info = {info})")
     return x
