@@ -44,6 +44,7 @@ Decisions beyond the paper (see README):
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 from typing import Callable, Generator, Iterator
 
@@ -160,6 +161,10 @@ class CORL:
         self._asked = False  # the pending trial was handed out by ask(): only then may tell() answer it
         self._finished = False
         self.start_step = "demonstration"  # the step name of trial 0 ("skill" when a skill's policy starts it)
+        # speculation: compute a step-1 / phase successor while its trial runs (see _speculate); only worth
+        # it when the rollout does not hold the GIL (a worker process, corl.tasks.worker), so off by default
+        self.speculative = False
+        self._speculation: _Speculation | None = None
         self._gen: Generator[Proposal, Outcome, None] = self._algorithm()
 
     # -- ask / tell ----------------------------------------------------------------------------
@@ -180,6 +185,7 @@ class CORL:
 
     def tell(self, outcome: Outcome) -> None:
         """Record the outcome of the trial handed out by the last :meth:`ask` (each trial is told once)."""
+        self.settle()  # the speculation shares the task's caches: nothing touches the task before it ends
         if self._pending is None or not self._asked:  # the next trial is worked out at tell(), but not yet asked
             raise StateError("tell() without a pending ask(): call ask() first, run its trial, then tell its outcome")
         if not isinstance(outcome, Outcome):
@@ -197,6 +203,30 @@ class CORL:
         except Exception:
             self._finished = True  # the trial is recorded in history; the run cannot go on
             raise
+
+    def settle(self) -> None:
+        """Wait for the speculative computation, if one runs (its result or error stays with it)."""
+        if self._speculation is not None:
+            self._speculation.join()
+
+    def _speculate(self, fn, *args, **kwargs) -> "_Speculation | None":
+        """Start ``fn(*args, **kwargs)`` in a thread when :attr:`speculative`, else None.
+
+        Used just before yielding a step-1 or phase trial whose successor does not depend on the
+        outcome: the very call the code after the yield would make, with the same arguments, runs
+        while the trial is rolled out. :meth:`tell` joins it before touching anything; the generator
+        then takes its result (or re-raises its error) where the sequential code would have made the
+        call, or drops it (a failure). Same inputs, deterministic code: the same trials, bit for bit.
+        """
+        if not self.speculative:
+            return None
+        self._speculation = _Speculation(fn, args, kwargs)
+        return self._speculation
+
+    def _resumed(self) -> None:
+        """After a yield: the speculation, if any, has ended (tell joins it; joined again here)."""
+        self.settle()
+        self._speculation = None
 
     @property
     def done(self) -> bool:
@@ -280,9 +310,13 @@ class CORL:
         task, cfg = self.task, self.config
         problem = motion_problem(task, theta_star)  # the task's banded problem (SQP) when it gives one
         w_i = w_star
-        for _ in range(cfg.max_optimization_steps):
+        ahead: _Speculation | None = None  # solve() from w_i, started while w_i was rolled out
+        for step in range(cfg.max_optimization_steps):
             # Eq. 8: w(i+1) = argmin J(w) s.t. h(w, theta*) = 0, ||w - w(i)|| < eps_max
-            result = solve(problem, w_i, center=w_i, radius=self.eps_max, config=cfg.solver)
+            if ahead is not None:
+                result, ahead = ahead.result(), None
+            else:
+                result = solve(problem, w_i, center=w_i, radius=self.eps_max, config=cfg.solver)
             w_next = result.w
             if np.linalg.norm(w_next - w_i) < cfg.eps_w:  # until ||w(i+1) - w(i)|| < eps_w
                 break
@@ -290,7 +324,11 @@ class CORL:
                 break  # this very step failed before: never run it again
             w_i = w_next
             if cfg.rollout_every_step:
-                outcome = yield self._proposal(w_i, theta_star, "optimization")
+                proposal = self._proposal(w_i, theta_star, "optimization")
+                if step + 1 < cfg.max_optimization_steps:  # the next solve starts from w_i, whatever the outcome
+                    ahead = self._speculate(solve, problem, w_i, center=w_i, radius=self.eps_max, config=cfg.solver)
+                outcome = yield proposal
+                self._resumed()
                 if not outcome.success:  # do not walk further into failure; later steps are smaller
                     self.eps_max /= 2.0
                     return w_star, r_star
@@ -327,11 +365,11 @@ class CORL:
         movable = callable(getattr(self.task, "retimed", None))
         pinned = () if movable else tuple(getattr(self.task, "pinned_times", ()))
         J_i = cost_of(self.task, w_i)
-        for _ in range(cfg.max_phase_steps):
-            task = self.task
+
+        def candidate(task, problem, w_i):  # one phase step from w_i: (task, problem, w, J), or None: stop
             phase = optimize_phase(task.spline, w_i, pinned_times=pinned)
             if not phase.cost_after < phase.cost_before:
-                break
+                return None
             if movable:
                 grid = np.linspace(0.0, task.spline.duration, phase.p.shape[0])
                 T = task.spline.duration
@@ -339,15 +377,27 @@ class CORL:
                 problem = motion_problem(task, theta_star)
             retimed = retime(task.spline, w_i, phase.p, equalities=problem)
             if retimed.projection is not None and not feasible(retimed.projection, cfg.solver):
+                return None
+            return task, problem, retimed.w, cost_of(task, retimed.w)
+
+        ahead: _Speculation | None = None  # the next phase step from w_i, started while w_i was rolled out
+        for step in range(cfg.max_phase_steps):
+            found = ahead.result() if ahead is not None else candidate(self.task, problem, w_i)
+            ahead = None
+            if found is None:
                 break
-            w_next, J_next = retimed.w, cost_of(task, retimed.w)
+            task, problem, w_next, J_next = found
             if J_next >= J_i or np.linalg.norm(w_next - w_i) < cfg.eps_w:
                 break
             if cfg.rollout_every_step and self.failed_before(w_next):
                 break
             w_i, J_i = w_next, J_next
             if cfg.rollout_every_step:
-                outcome = yield self._proposal(w_i, theta_star, "phase")
+                proposal = self._proposal(w_i, theta_star, "phase")
+                if step + 1 < cfg.max_phase_steps:  # from the re-timed task, which holds on a success
+                    ahead = self._speculate(candidate, task, problem, w_i)
+                outcome = yield proposal
+                self._resumed()
                 if not outcome.success:
                     break
                 w_star, r_star = w_i, float(outcome.return_)
@@ -394,3 +444,28 @@ class CORL:
                 w_star, theta_star, r_star = w, theta, r
         self._best = Best(w_star, theta_star, r_star, cost_of(task, w_star))
         return w_star, theta_star, r_star, data
+
+
+class _Speculation:
+    """``fn(*args, **kwargs)`` in a thread: :meth:`result` joins it and returns its value or raises its error."""
+
+    def __init__(self, fn, args, kwargs) -> None:
+        self._value, self._error = None, None
+        self._thread = threading.Thread(target=self._run, args=(fn, args, kwargs), name="corl-speculation",
+                                        daemon=True)
+        self._thread.start()
+
+    def _run(self, fn, args, kwargs) -> None:
+        try:
+            self._value = fn(*args, **kwargs)
+        except BaseException as exc:  # re-raised by result(), where the sequential code makes the call
+            self._error = exc
+
+    def join(self) -> None:
+        self._thread.join()
+
+    def result(self):
+        self.join()
+        if self._error is not None:
+            raise self._error
+        return self._value

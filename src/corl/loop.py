@@ -16,18 +16,21 @@ __all__ = ["drive", "optimize", "OptimizeResult"]
 
 
 def drive(learner, task: Task, *, max_trials: int | None = None,
-          callback: Callable[[Proposal, Outcome], None] | None = None, pending_hint: str = "") -> int:
-    """Run ``learner`` (anything with ask/tell/done) on ``task.rollout`` until done.
+          callback: Callable[[Proposal, Outcome], None] | None = None, pending_hint: str = "",
+          rollout: Callable[[np.ndarray], Outcome] | None = None) -> int:
+    """Run ``learner`` (anything with ask/tell/done) on ``task.rollout`` (or ``rollout``, e.g. a worker
+    process's, :mod:`corl.tasks.worker`) until done.
 
     A rollout that raises or returns something other than an :class:`Outcome` raises
     :class:`RolloutError`; its trial stays pending, so calling ``drive`` again retries it.
     Returns the number of trials told.
     """
+    rollout = task.rollout if rollout is None else rollout
     count = 0
     while not learner.done and (max_trials is None or count < max_trials):
         proposal = learner.ask()  # the stopping contract: done is known before ask, which never signals a stop
         try:
-            outcome = task.rollout(proposal.w)
+            outcome = rollout(proposal.w)
         except Exception as exc:
             raise RolloutError(
                 f"the rollout of trial {proposal.index} ({proposal.step}) raised {type(exc).__name__}: {exc}. "

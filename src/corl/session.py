@@ -225,9 +225,27 @@ class StoredRun:
         return self.learner.history
 
     def run(self, task: Task, *, max_trials: int | None = None,
-            callback: Callable[[Proposal, Outcome], None] | None = None):
-        """ask -> ``task.rollout`` -> tell until the learner is done (or ``max_trials``)."""
-        drive(self, task, max_trials=max_trials, callback=callback, pending_hint=" in the store")
+            callback: Callable[[Proposal, Outcome], None] | None = None, worker: bool = True):
+        """ask -> ``task.rollout`` -> tell until the learner is done (or ``max_trials``).
+
+        A task with ``rollout_in_worker = True`` (a simulator) is rolled out in a forked worker process
+        (:mod:`corl.tasks.worker`) while a learner that can (CORL) computes its next step-1 or phase
+        candidate meanwhile: the same trials, sooner. ``worker=False`` keeps everything in this process.
+        """
+        from corl.tasks.worker import RolloutWorker, wants_worker
+
+        learner = self.learner
+        if not (worker and wants_worker(task) and hasattr(learner, "speculative")):
+            drive(self, task, max_trials=max_trials, callback=callback, pending_hint=" in the store")
+        else:
+            with RolloutWorker(task) as rollouts:  # forked here, ended on every way out
+                learner.speculative = True
+                try:
+                    drive(self, task, max_trials=max_trials, callback=callback, pending_hint=" in the store",
+                          rollout=rollouts.rollout)
+                finally:
+                    learner.speculative = False
+                    learner.settle()  # no thread left computing on the task once run() returns
         if self.done:
             self.store.set_status(self.run_id, RunStatus.FINISHED)
         return self.best

@@ -90,6 +90,7 @@ class DoorTask:
     joint_names = ARM_JOINTS + ("gripper_width_m",)
     context_bounds = CONTEXT_BOUNDS
     context_labels = CONTEXT_LABELS
+    rollout_in_worker = True  # a simulator: `corl run` rolls out in a forked process (corl.tasks.worker)
 
     def __init__(self, *, num_control_points: int = 150, num_steps: int = 250, force_noise: float = 0.0,
                  seed: int = 0, context=None) -> None:
