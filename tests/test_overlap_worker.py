@@ -181,3 +181,20 @@ def test_the_child_dies_with_its_parent(tmp_path):
             return
         time.sleep(0.05)
     pytest.fail(f"the worker {child} outlived its parent")
+
+
+def test_check_task_refuses_a_rollout_in_worker_that_is_not_a_bool():
+    from corl.errors import InputError
+    from corl.problem import check_task
+    from corl.tasks.synthetic import SyntheticTask
+
+    class Odd(SyntheticTask):
+        rollout_in_worker = "yes"
+
+    with pytest.raises(InputError, match="'rollout_in_worker' must be True or False"):
+        check_task(Odd())
+
+    class Fine(SyntheticTask):
+        rollout_in_worker = False
+
+    check_task(Fine())

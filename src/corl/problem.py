@@ -32,7 +32,7 @@ from corl.numerics import as_vector
 
 __all__ = ["Bounds", "Outcome", "Proposal", "Demonstration", "Task", "check_theta", "HasMethodSettings",
            "HasTrajectoryProblem", "HasProjectionMetric", "HasSpline", "Retimable", "HasPinnedTimes", "HasReference",
-           "HasJointNames", "HasThetaLabels", "RendersComparison", "HasContexts", "context_of", "REQUIRED_MEMBERS", "OPTIONAL_MEMBERS",
+           "HasJointNames", "HasThetaLabels", "RendersComparison", "RollsOutInWorker", "HasContexts", "context_of", "REQUIRED_MEMBERS", "OPTIONAL_MEMBERS",
            "DEPRECATED_MEMBERS", "constraint_of", "check_task", "check_reference"]
 
 
@@ -297,6 +297,16 @@ class RendersComparison(Protocol):
 
 
 @runtime_checkable
+class RollsOutInWorker(Protocol):
+    """``rollout_in_worker = True``: a simulator whose ``rollout(w)`` is a pure function of ``w`` that
+    changes nothing the learner reads. ``corl run`` then rolls it out in a forked process while CORL
+    computes its next motion step (:mod:`corl.tasks.worker`): the same trials on two cores. Never
+    for a real robot's task (it would be forked)."""
+
+    rollout_in_worker: bool
+
+
+@runtime_checkable
 class HasContexts(Protocol):
     """Contexts (one skill, many scenes): what the robot measures before a trial and cannot choose.
 
@@ -324,6 +334,7 @@ OPTIONAL_MEMBERS = {"method_settings": (HasMethodSettings, True),
                     "pinned_times": (HasPinnedTimes, False), "reference": (HasReference, True),
                     "joint_names": (HasJointNames, False), "theta_labels": (HasThetaLabels, False),
                     "render_comparison": (RendersComparison, True),
+                    "rollout_in_worker": (RollsOutInWorker, False),
                     "with_context": (HasContexts, True), "context_bounds": (HasContexts, False),
                     "context": (HasContexts, False), "context_labels": (HasContexts, False)}
 
@@ -374,6 +385,9 @@ def check_task(task, source: str = "the task") -> Task:
             raise InputError(f"{where}: the optional member '{member}' must be a method or absent "
                              f"(see corl.problem.{OPTIONAL_MEMBERS[member][0].__name__})")
     _check_contexts(task, where)
+    if getattr(task, "rollout_in_worker", None) not in (None, True, False):
+        raise InputError(f"{where}: 'rollout_in_worker' must be True or False, got "
+                         f"{getattr(task, 'rollout_in_worker')!r:.40} (see corl.problem.RollsOutInWorker)")
     for member, size in (("theta_labels", task.theta_bounds.dim), ("joint_names", None)):
         value = getattr(task, member, None)
         if value is None:
