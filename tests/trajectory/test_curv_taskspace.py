@@ -28,7 +28,7 @@ class CountingFeature:
         return self._hessian(q)
 
 
-def setup(arm, seed=0):
+def problem_data(arm, seed=0):
     fk, _ = arm
     rng = np.random.default_rng(seed)
     w = rng.normal(scale=0.4, size=SPLINE.n)
@@ -46,7 +46,7 @@ def dense(blocks, n):
 
 def test_picks_up_fk_hessian(arm):
     fk, hessian = arm
-    w, nu, targets = setup(arm)
+    w, nu, targets = problem_data(arm)
     feature = CountingFeature(fk, hessian)
     auto = TaskSpaceFeature(SPLINE, feature, TIMES, targets)
     assert auto.fk_hessian == feature.hessian
@@ -63,7 +63,7 @@ def test_picks_up_fk_hessian(arm):
 
 def test_explicit_hessian_wins(arm):
     fk, hessian = arm
-    w, nu, targets = setup(arm, seed=1)
+    w, nu, targets = problem_data(arm, seed=1)
     feature = CountingFeature(fk, lambda q: np.full((3, 7, 7), np.nan))
     f = TaskSpaceFeature(SPLINE, feature, TIMES, targets, fk_hessian=hessian)
     assert np.all(np.isfinite(dense(f.curvature(w, nu), SPLINE.n)))
@@ -77,7 +77,7 @@ def test_non_callable_hessian_attribute_is_ignored(arm):
         return fk(q)
 
     plain.hessian = "not a function"
-    w, nu, targets = setup(arm)
+    w, nu, targets = problem_data(arm)
     f = TaskSpaceFeature(SPLINE, plain, TIMES, targets)
     assert f.fk_hessian is None
     assert len(f.curvature(w, nu)) == len(TIMES)
