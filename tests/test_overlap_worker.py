@@ -198,3 +198,62 @@ def test_check_task_refuses_a_rollout_in_worker_that_is_not_a_bool():
         rollout_in_worker = False
 
     check_task(Fine())
+
+
+class Formatted(Exception):
+    def __init__(self, step):  # pickles and unpickles, but with another message: goes back as text
+        super().__init__(f"the simulation diverged at step {step}")
+
+
+class Formats(Fake):
+    def rollout(self, w):
+        raise Formatted(17)
+
+
+def test_an_error_that_would_come_back_changed_keeps_its_message():
+    with RolloutWorker(Formats()) as worker:
+        with pytest.raises(Exception, match=r"^the simulation diverged at step 17$") as err:
+            worker.rollout([1.0])
+    assert type(err.value).__name__ == "Formatted"
+
+
+def test_an_interrupted_wait_breaks_the_worker_instead_of_answering_the_next_w(monkeypatch):
+    import corl.tasks.worker as worker_module
+
+    worker = RolloutWorker(Fake())
+    try:
+        def interrupted(*args, **kwargs):
+            raise KeyboardInterrupt
+
+        monkeypatch.setattr(worker_module, "wait", interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            worker.rollout([5.0])
+        monkeypatch.undo()
+        with pytest.raises(WorkerError, match="interrupted"):  # never the answer meant for [5.0]
+            worker.rollout([1.0])
+    finally:
+        worker.close()
+    assert children() == []
+
+
+def test_a_learner_that_only_passes_attributes_on_gets_no_worker(tmp_path, monkeypatch):
+    # ContextualCORL hands attribute lookups to its inner CORL: it must not look like a learner that
+    # speculates (the worker would be forked for nothing, and settle() fails once no start is left)
+    import corl.tasks.worker as worker_module
+
+    class Passes:
+        def __init__(self, inner):
+            self._inner = inner
+
+        def __getattr__(self, name):
+            return getattr(self._inner, name)
+
+    task = WaypointTask()
+    task.rollout_in_worker = True
+    run = StoredRun.new(task, task_spec="x", method="CORL", seed=0)
+    run.learner = Passes(run.learner)
+    monkeypatch.setattr(worker_module, "RolloutWorker", lambda *a, **k: pytest.fail("a worker was started"))
+    with RunStore(tmp_path / "s.corl") as db:
+        run.attach(db)
+        run.run(task, max_trials=3)
+    assert len(run.history) == 3

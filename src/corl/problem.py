@@ -300,8 +300,9 @@ class RendersComparison(Protocol):
 class RollsOutInWorker(Protocol):
     """``rollout_in_worker = True``: a simulator whose ``rollout(w)`` is a pure function of ``w`` that
     changes nothing the learner reads. ``corl run`` then rolls it out in a forked process while CORL
-    computes its next motion step (:mod:`corl.tasks.worker`): the same trials on two cores. Never
-    for a real robot's task (it would be forked)."""
+    computes its next motion step (:mod:`corl.tasks.worker`, Linux only): the same trials on two
+    cores. Never for a real robot's task (it would be forked): a robot task that subclasses a
+    simulated one (e.g. to reuse the door's constraints) sets ``rollout_in_worker = False``."""
 
     rollout_in_worker: bool
 

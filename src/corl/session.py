@@ -205,6 +205,8 @@ class StoredRun:
         a failed demonstration (Algorithm 1 needs a successful one) leaves the store as it was.
         """
         pending = self.check(outcome)
+        if "settle" in dir(type(self.learner)):  # a speculation ends first: store and learner move on together
+            self.learner.settle()
         self.store.add_outcome(self.run_id, pending.index, outcome)  # committed before the learner moves on
         try:
             self.learner.tell(outcome)
@@ -235,7 +237,8 @@ class StoredRun:
         from corl.tasks.worker import RolloutWorker, wants_worker
 
         learner = self.learner
-        if not (worker and wants_worker(task) and hasattr(learner, "speculative")):
+        # vars(): a learner of its own that speculates (CORL), not one that passes attributes on (ContextualCORL)
+        if not (worker and wants_worker(task) and "speculative" in vars(learner)):
             drive(self, task, max_trials=max_trials, callback=callback, pending_hint=" in the store")
         else:
             with RolloutWorker(task) as rollouts:  # forked here, ended on every way out

@@ -98,7 +98,8 @@ def run(
             payload.update(task_extras(the_task, session.learner))
             tracker.message("writing figures ...")
             payload["files"] = write_run_artifacts(the_task, session.learner, out, video=False)
-    if video:  # after the store is closed: the run is safe on disk whatever rendering does
+    if video:  # after the store is closed and summary.json written: the run is safe whatever rendering does
+        write_json(out / "summary.json", payload)
         if not quiet and not json_out:
             typer.echo("rendering the video ...", err=True)
         payload["files"].update(write_run_video(the_task, session.learner, out))

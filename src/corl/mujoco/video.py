@@ -207,7 +207,8 @@ def write_side_by_side(path: str | os.PathLike, left: np.ndarray, right: np.ndar
     """Write two frame stacks (F, H, W, 3) next to each other; MP4 when ffmpeg is there, else GIF.
 
     The shorter stack holds its last frame. Frames go to the encoder one by one (no copy of the
-    whole video in memory).
+    whole video in memory), into a hidden ``.partial`` file renamed to ``path`` once complete: a
+    failed encoding never leaves a truncated video under the promised name.
     """
     import imageio.v2 as imageio
 
@@ -219,11 +220,19 @@ def write_side_by_side(path: str | os.PathLike, left: np.ndarray, right: np.ndar
 
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_name(f".{path.stem}.partial{path.suffix}")  # renamed into place once complete
     try:
-        with imageio.get_writer(path, fps=fps, macro_block_size=8, ffmpeg_params=["-preset", X264_PRESET]) as out:
+        with imageio.get_writer(partial, fps=fps, macro_block_size=8, ffmpeg_params=["-preset", X264_PRESET]) as out:
             for frame in frames():
                 out.append_data(frame)
+        os.replace(partial, path)
     except Exception:
+        partial.unlink(missing_ok=True)
         path = path.with_suffix(".gif")
-        imageio.mimwrite(path, list(frames()), duration=1.0 / fps)
+        partial = path.with_name(f".{path.stem}.partial.gif")
+        try:
+            imageio.mimwrite(partial, list(frames()), duration=1.0 / fps)
+            os.replace(partial, path)
+        finally:
+            partial.unlink(missing_ok=True)
     return path

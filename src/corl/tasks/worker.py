@@ -20,6 +20,7 @@ import multiprocessing
 import os
 import pickle
 import signal
+import sys
 from multiprocessing.connection import wait
 
 import numpy as np
@@ -32,10 +33,11 @@ class WorkerError(RuntimeError):
 
 
 def wants_worker(task) -> bool:
-    """True when ``task`` opts in to rollouts in a worker process, the platform can fork and this process
-    may have children (a daemonic one, e.g. a pool's worker, may not)."""
-    return (getattr(task, "rollout_in_worker", False) is True and "fork" in multiprocessing.get_all_start_methods()
-            and not multiprocessing.current_process().daemon)
+    """True when ``task`` opts in to rollouts in a worker process, this is Linux (fork without exec is
+    unsafe on macOS once numpy's BLAS runs, and only Linux kills the child with its parent) and this
+    process may have children (a daemonic one, e.g. a pool's worker, may not)."""
+    return (getattr(task, "rollout_in_worker", False) is True and sys.platform.startswith("linux")
+            and "fork" in multiprocessing.get_all_start_methods() and not multiprocessing.current_process().daemon)
 
 
 def _serve(task, conn, parent_end, parent: int) -> None:
@@ -52,11 +54,13 @@ def _serve(task, conn, parent_end, parent: int) -> None:
             return
         try:
             reply = ("ok", task.rollout(w))
-        except Exception as exc:  # noqa: BLE001 - every error goes back to the parent
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - every error goes back to the parent
             reply = ("error", exc)
         try:
             data = pickle.dumps(reply)
-            pickle.loads(data)  # an exception whose class cannot be rebuilt from its args goes as text
+            back = pickle.loads(data)[1]  # an exception that does not come back the same goes as text
+            if reply[0] == "error" and (type(back) is not type(reply[1]) or str(back) != str(reply[1])):
+                raise TypeError("the exception does not survive pickling")
         except Exception as exc:  # noqa: BLE001
             bad = reply[1] if reply[0] == "error" else exc
             data = pickle.dumps(("text", (type(bad).__name__, str(bad))))
@@ -110,7 +114,12 @@ class RolloutWorker:
             self._conn.send(np.asarray(w))
         except (OSError, ValueError):
             self._fail("the rollout worker process is gone (its pipe is closed)")
-        ready = wait([self._conn, self._process.sentinel], timeout=self.timeout)
+        try:
+            ready = wait([self._conn, self._process.sentinel], timeout=self.timeout)
+        except BaseException:  # e.g. Ctrl-C: the child's answer would stay in the pipe for the next w
+            self._broken = "a rollout was interrupted; make a new RolloutWorker"
+            self.close()
+            raise
         if self._conn in ready:
             try:
                 kind, value = pickle.loads(self._conn.recv_bytes())
