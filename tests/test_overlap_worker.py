@@ -257,3 +257,22 @@ def test_a_learner_that_only_passes_attributes_on_gets_no_worker(tmp_path, monke
         run.attach(db)
         run.run(task, max_trials=3)
     assert len(run.history) == 3
+
+
+def test_a_fork_that_fails_runs_the_same_trials_in_this_process(tmp_path, monkeypatch):
+    import corl.tasks.worker as worker_module
+
+    def no_fork(*args, **kwargs):
+        raise OSError(11, "Resource temporarily unavailable")
+
+    monkeypatch.setattr(worker_module, "RolloutWorker", no_fork)
+    runs = []
+    for name, worker in (("a", True), ("b", False)):
+        task = WaypointTask()
+        task.rollout_in_worker = True
+        with RunStore(tmp_path / f"{name}.corl") as db:
+            run = StoredRun.new(task, task_spec="x", method="CORL", seed=0).attach(db)
+            run.run(task, max_trials=6, worker=worker)
+            runs.append(run.history)
+    assert len(runs[0]) == len(runs[1]) == 6
+    assert all(np.array_equal(p.w, q.w) and o == r for (p, o), (q, r) in zip(*runs))

@@ -232,16 +232,24 @@ class StoredRun:
 
         A task with ``rollout_in_worker = True`` (a simulator) is rolled out in a forked worker process
         (:mod:`corl.tasks.worker`) while a learner that can (CORL) computes its next step-1 or phase
-        candidate meanwhile: the same trials, sooner. ``worker=False`` keeps everything in this process.
+        candidate meanwhile: the same trials, sooner. ``worker=False`` keeps everything in this process,
+        and so does a machine where the fork fails. ``callback(proposal, outcome)`` may then run while
+        that candidate is computed: let it read the proposal, the outcome and ``best``, never the task.
         """
         from corl.tasks.worker import RolloutWorker, wants_worker
 
         learner = self.learner
+        rollouts = None
         # vars(): a learner of its own that speculates (CORL), not one that passes attributes on (ContextualCORL)
-        if not (worker and wants_worker(task) and "speculative" in vars(learner)):
+        if worker and wants_worker(task) and "speculative" in vars(learner):
+            try:
+                rollouts = RolloutWorker(task)  # forked here, ended on every way out
+            except OSError:  # no fork here (process limit, memory): the same trials in this process
+                rollouts = None
+        if rollouts is None:
             drive(self, task, max_trials=max_trials, callback=callback, pending_hint=" in the store")
         else:
-            with RolloutWorker(task) as rollouts:  # forked here, ended on every way out
+            with rollouts:
                 learner.speculative = True
                 try:
                     drive(self, task, max_trials=max_trials, callback=callback, pending_hint=" in the store",
