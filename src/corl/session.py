@@ -205,8 +205,9 @@ class StoredRun:
         a failed demonstration (Algorithm 1 needs a successful one) leaves the store as it was.
         """
         pending = self.check(outcome)
-        if "settle" in dir(type(self.learner)):  # a speculation ends first: store and learner move on together
-            self.learner.settle()
+        settle = getattr(type(self.learner), "settle", None)  # a speculation ends first: store and learner
+        if settle is not None:                                  # move on together
+            settle(self.learner)
         self.store.add_outcome(self.run_id, pending.index, outcome)  # committed before the learner moves on
         try:
             self.learner.tell(outcome)

@@ -52,7 +52,8 @@ def curved_arm(tiny):
 def test_cross_table():
     rng = np.random.default_rng(0)
     u, v = rng.normal(size=(2, 3, 5)), rng.normal(size=(2, 3, 4))
-    np.testing.assert_allclose(cross_table(u, v), np.cross(u[:, :, :, None], v[:, :, None, :], axis=1), atol=1e-15)
+    ref = np.cross(u[:, :, :, None], v[:, :, None, :], axis=1)
+    np.testing.assert_allclose(cross_table(u, v), ref, rtol=1e-12, atol=1e-14 * np.abs(ref).max())
 
 
 @pytest.mark.parametrize("robot", ["arm", "curved_arm"])
@@ -108,7 +109,7 @@ def test_orientation_hessian_exact(arm, distance):
     fk = orientation_feature(kin, f, target, weight=0.3)
     H = fk.hessian(Q0)
     fd = hessian_by_differences(fk, Q0)
-    np.testing.assert_allclose(H, np.swapaxes(H, 1, 2), atol=1e-15)
+    np.testing.assert_allclose(H, np.swapaxes(H, 1, 2), atol=1e-13 * np.abs(H).max())
     assert relative_error(H, fd) < 1e-8
 
 
@@ -124,7 +125,7 @@ def test_orientation_small_angle_model(arm, distance):
     assert relative_error(small.hessian(Q0), 0.5 * (fd + np.swapaxes(fd, 1, 2))) < 1e-8
     exact = orientation_feature(kin, f, target, weight=0.3).hessian(Q0)
     gap = np.abs(small.hessian(Q0) - exact).max()
-    assert gap < 1e-12 if distance == 0.0 else gap > 1e-3
+    assert gap < 1e-10 * np.abs(exact).max() if distance == 0.0 else gap > 1e-3
 
 
 def test_stack_and_cache(arm):

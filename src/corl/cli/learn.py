@@ -97,7 +97,7 @@ def run(
             payload["run_id"] = session.run_id
             payload.update(task_extras(the_task, session.learner))
             tracker.message("writing figures ...")
-            payload["files"] = write_run_artifacts(the_task, session.learner, out, video=False)
+            payload["files"] = write_run_artifacts(the_task, session.learner, out)
     if video:  # after the store is closed and summary.json written: the run is safe whatever rendering does
         write_json(out / "summary.json", payload)
         if not quiet and not json_out:

@@ -2,8 +2,9 @@
 
 * ``summary.json``: :func:`run_summary` (the fields every task has) and :func:`task_extras` (the
   demonstration's numbers and what the best trial measured); :func:`run_text` says it in a few lines;
-* figures and a video: :func:`write_run_artifacts` (the learning curve, the return map and, for a
-  task that renders, the demonstration beside the learned motion).
+* figures: :func:`write_run_artifacts` (the learning curve, the return map); with ``corl run
+  --video``, :func:`write_run_video` (for a task that renders, the demonstration beside the learned
+  motion).
 """
 
 from __future__ import annotations
@@ -96,16 +97,14 @@ def run_text(summary: dict, path: str | Path) -> str:
     return "\n".join(lines)
 
 
-def write_run_artifacts(task, learner, out: Path, *, video: bool = True) -> dict[str, str]:
-    """Learning curve (Fig. 2b), return map (Fig. 2c) and, for simulated tasks with a renderer,
-    a video of the demonstration beside the learned motion. Returns {name: path}."""
+def write_run_artifacts(task, learner, out: Path) -> dict[str, str]:
+    """Learning curve (Fig. 2b) and return map (Fig. 2c); the video is :func:`write_run_video`'s.
+    Returns {name: path}."""
     out = Path(out)
     files = {"learning_curve": str(plot_learning_curve(learner, out / "learning_curve.png"))}
     if getattr(learner, "optimizers", None) and task.theta_bounds.dim <= 2:
         labels = getattr(task, "theta_labels", ("theta 1", "theta 2"))
         files["return_map"] = str(plot_return_map(learner, out / "return_map.png", labels=labels))
-    if video:
-        files.update(write_run_video(task, learner, out))
     return files
 
 

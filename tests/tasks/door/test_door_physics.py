@@ -8,20 +8,8 @@ import pytest
 mujoco = pytest.importorskip("mujoco")
 
 from corl.tasks.door.controller import PDController, dense_reference  # noqa: E402
-from corl.tasks.door.demo import scripted_demonstration  # noqa: E402
 from corl.tasks.door.kinematics import Kinematics  # noqa: E402
-from corl.tasks.door.scene import load_scene  # noqa: E402
 from corl.tasks.door.sim import OPEN_THRESHOLD, rollout  # noqa: E402
-
-
-@pytest.fixture(scope="module")
-def scene():
-    return load_scene()
-
-
-@pytest.fixture(scope="module")
-def demo(scene):
-    return scripted_demonstration(scene)
 
 
 def _simulate(scene, reference, seconds, on_step=None, hinge_torque=0.0):

@@ -9,19 +9,8 @@ mujoco = pytest.importorskip("mujoco")
 
 from corl.mujoco import remove_static_load  # noqa: E402
 from corl.tasks.door.controller import PDController, dense_reference  # noqa: E402
-from corl.tasks.door.demo import scripted_demonstration, shifted_reference  # noqa: E402
-from corl.tasks.door.scene import load_scene  # noqa: E402
+from corl.tasks.door.demo import shifted_reference  # noqa: E402
 from corl.tasks.door.sim import HOLD_DISTANCE, _bar_distance, rollout  # noqa: E402
-
-
-@pytest.fixture(scope="module")
-def scene():
-    return load_scene()
-
-
-@pytest.fixture(scope="module")
-def demo(scene):
-    return scripted_demonstration(scene)
 
 
 def plain_rollout(scene, reference, t_contact, duration: float = 5.0) -> dict:
