@@ -16,7 +16,7 @@ export MKL_NUM_THREADS ?= 1
 $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -c constraints.txt -e ".[test,ray,dask,docs]"
+	$(PY) -m pip install --quiet -c constraints.txt -e ".[test,ray,dask,docs,serve]"
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -40,7 +40,7 @@ $(LOWEST_STAMP): pyproject.toml constraints-lowest.txt
 	rm -rf $(LOWEST)
 	$(PYTHON) -m venv $(LOWEST)
 	$(LOWEST)/bin/python -m pip install --quiet --upgrade pip
-	$(LOWEST)/bin/python -m pip install --quiet -c constraints-lowest.txt -e ".[test]"
+	$(LOWEST)/bin/python -m pip install --quiet -c constraints-lowest.txt -e ".[test,serve,docs]"
 	touch $(LOWEST_STAMP)
 
 VERSIONS := import corl.versions as v; print(' '.join(f'{k} {x}' for k, x in v.library_versions().items()))
@@ -55,7 +55,7 @@ test-latest:
 	rm -rf $(LATEST)
 	$(PYTHON) -m venv $(LATEST)
 	$(LATEST)/bin/python -m pip install --quiet --upgrade pip
-	$(LATEST)/bin/python -m pip install --quiet --upgrade --upgrade-strategy eager -e ".[test]"
+	$(LATEST)/bin/python -m pip install --quiet --upgrade --upgrade-strategy eager -e ".[test,serve,docs]"
 	@echo "newest versions:"; $(LATEST)/bin/python -c "$(VERSIONS)"
 	$(LATEST)/bin/python -m pytest -q -p no:cacheprovider
 
@@ -69,15 +69,15 @@ synthetic: $(STAMP)
 bench: $(STAMP)
 	$(PY) benchmarks/pibu_speed.py
 
-# API reference from the docstrings: one HTML page per module in docs/api (see docs/index.md).
+# The documentation site (mkdocs.yml, docs/): the guide, the reproduction and the API reference
+# from the docstrings, built offline into site/ with warnings as errors (open site/index.html).
 DOCS_STAMP := $(VENV)/.docs-installed
 $(DOCS_STAMP): $(STAMP) pyproject.toml
 	$(PY) -m pip install --quiet -c constraints.txt -e ".[docs]"
 	touch $(DOCS_STAMP)
 
 docs: $(DOCS_STAMP)
-	rm -rf docs/api
-	$(PY) docs/build_api.py docs/api
+	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict --site-dir site
 
 clean:
-	rm -rf $(VENV) $(LOWEST) $(LATEST) results build docs/api *.egg-info src/*.egg-info
+	rm -rf $(VENV) $(LOWEST) $(LATEST) results build site *.egg-info src/*.egg-info

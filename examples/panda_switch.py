@@ -241,6 +241,10 @@ class PandaSwitchTask:
 
     def run(self, w, on_step=None) -> dict:
         """Track ``w``: the paddle's angle, the press force and where the fingertips were."""
+        return self.follow(self.reference(w)[1], on_step)
+
+    def follow(self, q, on_step=None) -> dict:
+        """Track joint references ``q`` (N, 8) at the simulation's rate (1 / DT): what :meth:`run` logs."""
         import mujoco
 
         model = self.robot.model
@@ -264,7 +268,6 @@ class PandaSwitchTask:
             log["along"].append(-local[0])
             log["gap"].append(local[2] - THICK / 2)
 
-        _, q = self.reference(w)
         track(self.robot, PDController(self.robot, KP, KV), q, DURATION, on_step=step)
         return {k: np.array(v) for k, v in log.items()}
 
@@ -275,7 +278,19 @@ class PandaSwitchTask:
         return float(log["force"][int(np.argmax(touch)):].mean()) if touch.any() else float("nan")
 
     def rollout(self, w) -> Outcome:
-        log = self.run(w)
+        return self.judge(self.run(w))
+
+    def execute(self, t, q) -> Outcome:
+        """The simulated robot follows a joint trajectory ``q`` (K, 8) at times ``t`` (K,), as a real one would
+        (``examples/robot_client.py``); off the simulation's grid it is interpolated linearly onto it."""
+        grid = np.arange(int(round(DURATION / DT)) + 1) * DT
+        t, q = np.asarray(t, dtype=float), np.asarray(q, dtype=float)
+        if t.shape != grid.shape or not np.allclose(t, grid, rtol=0.0, atol=1e-9):
+            q = np.column_stack([np.interp(grid, t, q[:, j]) for j in range(q.shape[1])])
+        return self.judge(self.follow(q))
+
+    def judge(self, log) -> Outcome:
+        """Success and return of a trial from what :meth:`follow` logged."""
         touch = log["touch"]
         info = {"angle_max": float(log["angle"].max())}
         if not touch.any():

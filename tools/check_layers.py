@@ -36,6 +36,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("base", ("corl.errors", "corl.versions", "corl.checks")),  # exceptions, versions, setting checks: nothing of corl above
     ("numerics", ("corl.numerics",)),  # jitter ladder, variance floors, log-space CDFs
     ("problem", ("corl.problem",)),  # Eq. 2-5: Task, Bounds, Proposal, Outcome, Demonstration
+    ("client", ("corl.client",)),  # a client of `corl serve`: stdlib HTTP, ask/tell like a learner
     ("trajectory", ("corl.trajectory",)),  # B-splines, features, the solver of Eq. 8
     ("gp", ("corl.gp",)),  # Eq. 11-13, 16
     ("acquisition", ("corl.acquisition",)),  # Eq. 14-15, 17
@@ -57,6 +58,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("experiments.studies", ("corl.experiments.synthetic", "corl.experiments.door",
                                                        "corl.experiments.contexts")),  # Fig. 1, Fig. 3
     ("experiments.html", ("corl.experiments.html",)),  # `corl report`
+    ("serve", ("corl.serve",)),  # `corl serve`: the learner over HTTP, the live dashboard
     ("experiments", ("corl.experiments",)),  # the package, and the old path of corl.methods
     ("cli.support", ("corl.progress", "corl.arguments")),  # progress display, argument checks
     ("cli", ("corl.cli",)),  # the `corl` command

@@ -16,6 +16,7 @@ an import path) and checked against the name recorded with the run.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import asdict
 from pathlib import Path
 from typing import Callable
@@ -96,6 +97,7 @@ class StoredRun:
         self.run_id = run_id
         self._record: dict | None = None  # what create_run stores, for a run not in a store yet
         self._seen: tuple | None = None  # the stored run as it was read: trials, outcomes, status
+        self.commit_seconds = 0.0  # what the last ask or tell spent committing to the store
 
     # -- creating and reopening ----------------------------------------------------------------
     @classmethod
@@ -185,7 +187,9 @@ class StoredRun:
 
     def hand_out(self, proposal: Proposal) -> Proposal:
         """Commit ``proposal``, which ``learner.ask()`` returned, before it is handed out."""
+        t0 = time.perf_counter()
         self.store.add_proposal(self.run_id, proposal)
+        self.commit_seconds = time.perf_counter() - t0
         return proposal
 
     def check(self, outcome: Outcome):
@@ -208,7 +212,9 @@ class StoredRun:
         settle = getattr(type(self.learner), "settle", None)  # a speculation ends first: store and learner
         if settle is not None:                                  # move on together
             settle(self.learner)
+        t0 = time.perf_counter()
         self.store.add_outcome(self.run_id, pending.index, outcome)  # committed before the learner moves on
+        self.commit_seconds = time.perf_counter() - t0
         try:
             self.learner.tell(outcome)
         finally:

@@ -2,7 +2,7 @@
 
 One module per group of commands, registered here in the order ``corl --help`` lists them:
 :mod:`~corl.cli.bench` (``bench synthetic``, ``bench door``, ``bench contexts``, ``sweep``), :mod:`~corl.cli.learn`
-(``run``, ``ask``, ``tell``), :mod:`~corl.cli.skill` (``policy``: a skill learned across contexts)
+(``run``, ``ask``, ``tell``), :mod:`~corl.cli.serve` (``serve``: the learner over HTTP), :mod:`~corl.cli.skill` (``policy``: a skill learned across contexts)
 and :mod:`~corl.cli.store` (``status``, ``runs``, ``export``, ``report``); :mod:`~corl.cli.common`
 holds what they share.
 
@@ -17,7 +17,7 @@ import sys
 
 import typer
 
-from corl.cli import bench, learn, skill, store
+from corl.cli import bench, learn, serve, skill, store
 from corl.cli.common import refuse_exit
 
 __all__ = ["app", "main"]
@@ -30,7 +30,7 @@ app.add_typer(bench_app, name="bench")
 for group, name, command in ((bench_app, "synthetic", bench.bench_synthetic), (bench_app, "door", bench.bench_door),
                              (bench_app, "contexts", bench.bench_contexts),
                              (app, "sweep", bench.sweep), (app, "run", learn.run), (app, "ask", learn.ask),
-                             (app, "tell", learn.tell), (app, "policy", skill.policy), (app, "status", store.status),
+                             (app, "tell", learn.tell), (app, "serve", serve.serve), (app, "policy", skill.policy), (app, "status", store.status),
                              (app, "runs", store.runs), (app, "export", store.export), (app, "report", store.report)):
     group.command(name)(refuse_exit(command))  # a task's sys.exit() is an error, not a silent exit
 

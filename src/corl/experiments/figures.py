@@ -12,11 +12,12 @@ display. Each writes a PNG and returns its path.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["plot_learning_curve", "plot_return_map", "plot_trials", "plot_trial_curves", "plot_sweep"]
+__all__ = ["plot_learning_curve", "plot_return_map", "ReturnMapData", "return_map_data", "plot_trials", "plot_trial_curves", "plot_sweep"]
 
 _MOTION_STEPS = ("demonstration", "skill", "optimization", "phase")
 
@@ -80,31 +81,62 @@ def plot_learning_curve(learner, path: str | Path, *, title: str = "Motion optim
     return _save(plt, fig, path)
 
 
-def _data(learner):
-    """theta (d, m), success (d,), returns (d,) of every black-box trial, demonstration included."""
-    opt = learner.optimizers[-1] if learner.optimizers else None
+@dataclass(frozen=True)
+class ReturnMapData:
+    """What a return map draws, copied out of a learner (:func:`return_map_data`), so that it can be drawn
+    while the learner moves on (the dashboard of ``corl serve``).
+
+    ``X`` (d, m) theta of every black-box trial, demonstration included; ``success`` (d,); ``returns``
+    (d,); ``bounds`` the task's theta bounds; ``best`` ``(theta (m,), return)`` or None; ``config``
+    the black-box optimizer's config (its GP settings), or None.
+    """
+
+    X: np.ndarray
+    success: np.ndarray
+    returns: np.ndarray
+    bounds: object
+    best: tuple | None
+    config: object = None
+
+
+def return_map_data(learner) -> ReturnMapData:
+    """The last black-box step's data of ``learner``, copied; ValueError before its first black-box step."""
+    opt = learner.optimizers[-1] if getattr(learner, "optimizers", None) else None
     if opt is None:
         raise ValueError("the learner has not run a black-box step yet: there is no return map")
-    return opt, opt.X_, opt.success_, opt.returns_
+    best = learner.best
+    return ReturnMapData(np.array(opt.X_, dtype=float), np.array(opt.success_, dtype=bool),
+                         np.array(opt.returns_, dtype=float), learner.task.theta_bounds,
+                         None if best is None else (np.array(best.theta, dtype=float), float(best.return_)),
+                         getattr(opt, "config", None))
 
 
 def plot_return_map(learner, path: str | Path, *, regression=None, classifier=None,
                     labels=("theta 1", "theta 2"), title: str = "Learned return R(theta) (Fig. 2c)") -> Path:
     """GP mean of R over theta with successes (blue), failures (red), the classifier's decision
-    boundary (red line, p = 0.5) and the best theta (magenta star). 1-D or 2-D theta."""
+    boundary (red line, p = 0.5) and the best theta (magenta star). 1-D or 2-D theta.
+
+    ``learner``: a learner after its first black-box step, or its :class:`ReturnMapData`."""
+    data = learner if isinstance(learner, ReturnMapData) else return_map_data(learner)
+    return _draw_return_map(data, path, regression=regression, classifier=classifier, labels=labels, title=title)
+
+
+def _draw_return_map(data: ReturnMapData, path, *, regression, classifier, labels, title) -> Path:
     from corl.optimizers.gpconfig import ClassifierConfig, ModelFitter, RegressionConfig
 
     plt = _pyplot()
-    opt, X, s, r = _data(learner)
-    cfg = getattr(opt, "config", None)
+    X, s, r = data.X, data.success, data.returns
+    cfg = data.config
     regression = regression or getattr(cfg, "regression", None) or RegressionConfig()
     classifier = classifier or getattr(cfg, "classifier", None) or ClassifierConfig()
     ok = s & np.isfinite(r)
-    bounds = learner.task.theta_bounds
+    bounds = data.bounds
+    if bounds.dim > 2:
+        raise ValueError(f"a return map needs 1-D or 2-D theta, this task has m = {bounds.dim}")
     fitter = ModelFitter(regression, classifier, bounds)  # fixed values as given, or fitted as the learner fits
     reg = fitter.regression(X[ok], r[ok])
     clf = fitter.classifier(X, s)
-    best = learner.best
+    best_theta, best_return = data.best if data.best is not None else (None, None)
     fig, ax = plt.subplots(figsize=(6, 4.5))
     if bounds.dim == 1:
         g = np.linspace(bounds.lower[0], bounds.upper[0], 600)[:, None]
@@ -117,7 +149,8 @@ def plot_return_map(learner, path: str | Path, *, regression=None, classifier=No
         ax.set_ylim(lo, hi)
         ax.scatter(X[ok, 0], r[ok], c="tab:blue", s=18, zorder=3, label="success")
         ax.scatter(X[~s, 0], np.full((~s).sum(), lo + 0.1), c="tab:red", marker="x", s=30, zorder=3, label="failure")
-        ax.scatter([best.theta[0]], [best.return_], c="magenta", marker="*", s=200, zorder=4, label="best")
+        if best_theta is not None:
+            ax.scatter([best_theta[0]], [best_return], c="magenta", marker="*", s=200, zorder=4, label="best")
         ax.set_xlabel(labels[0])
         ax.set_ylabel("R")
     elif bounds.dim == 2:
@@ -133,7 +166,9 @@ def plot_return_map(learner, path: str | Path, *, regression=None, classifier=No
         ax.contour(A, B, p.reshape(n, n), levels=[0.5], colors="red", linewidths=2)
         ax.scatter(X[ok, 0], X[ok, 1], c="tab:blue", edgecolors="white", s=28, label="success")
         ax.scatter(X[~s, 0], X[~s, 1], c="tab:red", edgecolors="white", s=28, label="failure")
-        ax.scatter([best.theta[0]], [best.theta[1]], c="magenta", marker="*", s=250, edgecolors="k", label="best")
+        if best_theta is not None:
+            ax.scatter([best_theta[0]], [best_theta[1]], c="magenta", marker="*", s=250, edgecolors="k",
+                       label="best")
         ax.plot([], [], color="red", lw=2, label="classifier boundary")
         ax.set_xlabel(labels[0])
         ax.set_ylabel(labels[1])

@@ -327,12 +327,13 @@ class DoorTask:
         return float(force) + self.force_noise * float(np.random.default_rng([self.seed, digest]).standard_normal())
 
     # -- for people -----------------------------------------------------------------------------
-    def render_comparison(self, w_demo: np.ndarray, w_learned: np.ndarray, path) -> str:
-        """An MP4 of the demonstration (left) beside the learned motion (right), captioned."""
+    def render_comparison(self, w_demo: np.ndarray, w_learned: np.ndarray, path,
+                          labels: tuple[str, str] = ("demonstration", "learned")) -> str:
+        """An MP4 of the demonstration (left) beside the learned motion (right), captioned with ``labels``."""
         from corl.tasks.door.video import caption, render_rollout, write_side_by_side
 
         panels = []
-        for name, w in (("demonstration", w_demo), ("learned", w_learned)):
+        for name, w in zip(labels, (w_demo, w_learned)):
             t, q = self.reference(w)
             frames, result = render_rollout(q, t_contact=grasp_instant(t, q), scene=self.scene)
             r, _ = self.cost_residuals(w)

@@ -1,0 +1,221 @@
+"""A client of ``corl serve`` that speaks like a learner: ``ask()``, ``tell()``, ``done``, ``stop_reason``, ``best``.
+
+::
+
+    from corl.client import Client
+
+    c = Client("http://127.0.0.1:8765")          # token=... when the server has one
+    while not c.done:
+        trial = c.ask()                           # trial.t (K,), trial.q (K, Q): the joint trajectory
+        success, ret = my_robot.execute(trial.t, trial.q)
+        c.tell(success, ret)
+    print(c.best, c.stop_reason)
+
+Only the standard library is used (``http.client``, ``json``), so a robot's Python needs nothing
+but corl itself. Both calls are idempotent on the server, so the client repeats them on its own
+when the connection fails (a server restarted after a crash, a dropped network): for up to
+``retry_for`` seconds it retries, and a repeated ``tell`` of a trial the server already committed
+is answered as the first one was. Errors the server answers (a bad outcome, a trial not pending,
+a wrong token) raise at once with the server's one-line message.
+"""
+
+from __future__ import annotations
+
+import http.client
+import json
+import time
+from dataclasses import dataclass, field
+from typing import Any
+from urllib.parse import urlsplit
+
+import numpy as np
+
+from corl.errors import CorlError, InputError, StateError
+from corl.problem import Outcome
+
+__all__ = ["Client", "Trial", "RemoteBest", "ServerError"]
+
+
+class ServerError(CorlError):
+    """The server answered an error (``status`` is the HTTP status), or could not be reached in time."""
+
+    def __init__(self, message: str, status: int | None = None) -> None:
+        super().__init__(message)
+        self.status = status
+
+
+@dataclass(frozen=True)
+class Trial:
+    """A trial the server handed out.
+
+    ``index`` its position in the run; ``theta`` (m,) its interaction parameters; ``step`` and
+    ``round`` where in Algorithm 1 it comes from; ``t`` (K,) and ``q`` (K, Q) the joint trajectory
+    to execute (``joint_names`` its columns) for a task with ``reference()``; ``w`` (n,) the raw
+    parameters, only when asked for with ``raw=True`` (never send those to a robot).
+    """
+
+    index: int
+    theta: np.ndarray
+    step: str
+    round: int
+    t: np.ndarray | None = None
+    q: np.ndarray | None = None
+    joint_names: tuple[str, ...] = ()
+    w: np.ndarray | None = None
+    run: int | None = None
+    raw: dict = field(default_factory=dict, repr=False)  # the answer as it came
+
+
+@dataclass(frozen=True)
+class RemoteBest:
+    """The best successful trial so far: ``theta`` (m,), its ``return_`` and analytic cost ``J``."""
+
+    theta: np.ndarray
+    return_: float
+    J: float | None = None
+
+
+class Client:
+    """Ask and tell trials of a ``corl serve`` at ``url`` (``http://host:port``).
+
+    Parameters
+    ----------
+    url : the server's address, as ``corl serve`` prints it.
+    token : the server's token (the content of its ``--token-file``), or None.
+    raw : ask for the raw parameters w instead of a joint trajectory (a task without ``reference()``).
+    timeout : seconds one request may take (an ask computes the next trial: give it time).
+    retry_for : seconds to keep retrying a request whose connection failed (0: fail at once).
+    """
+
+    def __init__(self, url: str, token: str | None = None, *, raw: bool = False, timeout: float = 600.0,
+                 retry_for: float = 60.0) -> None:
+        parts = urlsplit(url)
+        if parts.scheme not in ("http", "https") or not parts.hostname:
+            raise InputError(f"the server's url must look like http://127.0.0.1:8765, got {url!r}")
+        self.url = url.rstrip("/")
+        self._parts = parts
+        self.token = token
+        self.raw = bool(raw)
+        self.timeout = float(timeout)
+        self.retry_for = float(retry_for)
+        self._conn: http.client.HTTPConnection | None = None
+        self._trial: Trial | None = None
+        self._last: dict | None = None  # the latest status the server sent (a tell's answer carries it)
+
+    # -- the learner's interface ---------------------------------------------------------------
+    def ask(self) -> Trial:
+        """The next trial (the pending one again, when it was not told yet)."""
+        a = self._request("POST", "/ask", {"raw": True} if self.raw else {})
+        ref = a.get("reference") or {}
+        self._trial = Trial(index=int(a["trial"]), theta=np.asarray(a["theta"], dtype=float), step=a["step"],
+                            round=int(a["round"]), run=a.get("run"),
+                            t=None if "t" not in ref else np.asarray(ref["t"], dtype=float),
+                            q=None if "q" not in ref else np.asarray(ref["q"], dtype=float),
+                            joint_names=tuple(ref.get("joint_names", ())),
+                            w=None if "w" not in a else np.asarray(a["w"], dtype=float), raw=a)
+        self._last = None
+        return self._trial
+
+    def tell(self, outcome: Outcome | bool, return_: float | None = None, *, info: dict | None = None,
+             trial: int | None = None) -> dict:
+        """Tell the outcome of the asked trial (or of ``trial``): an :class:`corl.Outcome`, or ``success, return_``."""
+        if isinstance(outcome, Outcome):
+            success, value, extra = outcome.success, outcome.return_, dict(outcome.info)
+        else:
+            success, value, extra = outcome, return_, {}
+        if info:
+            extra.update(info)
+        if trial is None:
+            if self._trial is None:
+                raise StateError("tell() without ask(): ask for a trial first, run it, then tell its outcome")
+            trial = self._trial.index
+        body = {"trial": int(trial), "success": bool(success) if isinstance(success, (bool, np.bool_)) else success,
+                "return": None if value is None else float(value), "info": extra}
+        answer = self._request("POST", "/tell", body)
+        self._last = answer
+        return answer
+
+    @property
+    def done(self) -> bool:
+        """True once the learner stopped."""
+        return bool(self._state()["done"])
+
+    @property
+    def stop_reason(self) -> str | None:
+        """Why the learner stopped ("converged", "budget", ...), or None while it runs."""
+        return self._state()["stop_reason"]
+
+    @property
+    def best(self) -> RemoteBest | None:
+        """The best successful trial so far, or None."""
+        b = self.status().get("best")
+        return None if b is None else RemoteBest(np.asarray(b["theta"], dtype=float), float(b["return"]), b.get("J"))
+
+    def status(self) -> dict:
+        """``GET /status``: trials, failures, pending, best, done, stop_reason."""
+        self._last = self._request("GET", "/status")
+        return self._last
+
+    def trials(self, since: int = 0) -> list[dict]:
+        """``GET /trials``: every trial from index ``since`` on."""
+        return self._request("GET", f"/trials?since={int(since)}")["trials"]
+
+    def close(self) -> None:
+        if self._conn is not None:
+            self._conn.close()
+            self._conn = None
+
+    def __enter__(self) -> "Client":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # -- HTTP ----------------------------------------------------------------------------------
+    def _state(self) -> dict:
+        return self._last if self._last is not None and "done" in self._last else self.status()
+
+    def _connection(self) -> http.client.HTTPConnection:
+        if self._conn is None:
+            kind = http.client.HTTPSConnection if self._parts.scheme == "https" else http.client.HTTPConnection
+            self._conn = kind(self._parts.hostname, self._parts.port, timeout=self.timeout)
+        return self._conn
+
+    def _request(self, method: str, path: str, body: dict | None = None) -> dict[str, Any]:
+        headers = {"Accept": "application/json"}
+        data = None
+        if body is not None:
+            data = json.dumps(body, allow_nan=False).encode("utf-8")
+            headers["Content-Type"] = "application/json"
+        if self.token is not None:
+            headers["Authorization"] = f"Bearer {self.token}"
+        deadline = time.monotonic() + self.retry_for
+        delay = 0.05
+        while True:
+            try:
+                conn = self._connection()
+                conn.request(method, path, body=data, headers=headers)
+                response = conn.getresponse()
+                payload = response.read()
+                status = response.status
+                break
+            except (ConnectionError, http.client.HTTPException, OSError) as exc:
+                self.close()  # a fresh connection next time
+                if time.monotonic() + delay > deadline:
+                    raise ServerError(f"cannot reach the corl server at {self.url} ({type(exc).__name__}: {exc}); "
+                                      "is corl serve running there?") from None
+                time.sleep(delay)
+                delay = min(2 * delay, 1.0)
+        try:
+            answer = json.loads(payload.decode("utf-8")) if payload else {}
+        except (UnicodeDecodeError, ValueError):
+            raise ServerError(f"{self.url}{path} answered {status} with something that is not JSON; is this a corl "
+                              "server?", status) from None
+        if status >= 400:
+            message = answer.get("error", f"HTTP {status}") if isinstance(answer, dict) else f"HTTP {status}"
+            if status == 400:
+                raise InputError(message)
+            if status == 409:
+                raise StateError(message)
+            raise ServerError(message, status)
+        return answer

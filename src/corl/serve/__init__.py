@@ -1,0 +1,131 @@
+"""``corl serve``: the learner in one long-lived process beside the robot, reachable over HTTP.
+
+A robot stack (a ROS node, a lab's control PC, a notebook on another machine) asks for a trial,
+runs it and tells its outcome; the learner stays in memory, so no request replays the run, and
+every trial is committed to the run store before it is answered (:mod:`corl.serve.run`). The
+HTTP API and its rules are in :mod:`corl.serve.app` and :mod:`corl.serve.guard`; the client is
+:class:`corl.client.Client`. Needs the ``serve`` extra: ``pip install 'corl[serve]'``.
+
+From Python, :func:`background` runs a server in a thread (a notebook, a test)::
+
+    with background("run.corl", "synthetic") as url:
+        client = Client(url)
+        ...
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+import threading
+from pathlib import Path
+from typing import Callable
+
+from corl.errors import MissingExtraError
+from corl.serve.guard import check_bind, is_loopback, read_token
+
+__all__ = ["serve_forever", "background", "check_bind", "read_token", "is_loopback"]
+
+
+def _require() -> None:
+    try:
+        import starlette  # noqa: F401
+        import uvicorn  # noqa: F401
+    except ImportError as exc:
+        raise MissingExtraError(f"corl serve needs {exc.name}: pip install 'corl[serve]' (Starlette and uvicorn)") \
+            from None
+
+
+def _listen(host: str, port: int) -> socket.socket:
+    """A listening TCP socket on ``host:port``: a port in use fails here, with OSError, before the run is opened."""
+    family = socket.AF_INET6 if ":" in host.strip("[]") else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        # Accepted connections inherit TCP_NODELAY (Linux): without it, a keep-alive client waits out
+        # Nagle's algorithm against its delayed ACK, 40 ms on every request after the first.
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        sock.bind((host.strip("[]"), port))
+        sock.listen(128)
+    except OSError:
+        sock.close()
+        raise
+    return sock
+
+
+def _url(sock: socket.socket, host: str) -> str:
+    port = sock.getsockname()[1]
+    host = host.strip("[]")
+    return f"http://[{host}]:{port}" if ":" in host else f"http://{host}:{port}"
+
+
+def _server(store, task: str, *, method, seed, host: str, port: int, token, rate: float, video: bool,
+            access_log: bool):
+    """``(uvicorn.Server, socket, ServedRun, url)``: listening, the run replayed, nothing served yet."""
+    import uvicorn
+
+    from corl.serve.app import create_app
+    from corl.serve.dashboard import Figures, Video
+    from corl.serve.run import ServedRun
+
+    _require()
+    check_bind(host, token)
+    sock = _listen(host, port)
+    try:
+        run = ServedRun(Path(store), task, method=method, seed=seed, rate=rate)
+    except BaseException:
+        sock.close()
+        raise
+    renders = video and callable(getattr(run.task, "render_comparison", None))
+    app = create_app(run, token=token, loopback=is_loopback(host), figures=Figures(),
+                     video=Video(task, int(run.info.seed or 0)) if renders else None)
+    config = uvicorn.Config(app, log_level="warning", access_log=access_log, lifespan="on",
+                            timeout_graceful_shutdown=2)
+
+    class Server(uvicorn.Server):
+        def handle_exit(self, sig, frame) -> None:  # SIGINT, SIGTERM: end the dashboards' event streams too
+            app.state.notifier.close()
+            super().handle_exit(sig, frame)
+
+    return Server(config), sock, run, _url(sock, host)
+
+
+def serve_forever(store, task: str, *, method: str | None = None, seed: int | None = None, host: str = "127.0.0.1",
+                  port: int = 8765, token: str | None = None, rate: float = 100.0, video: bool = True,
+                  access_log: bool = False, ready: Callable[[str, dict], None] | None = None) -> None:
+    """Serve the store's latest run (or a new one) of ``task`` until SIGINT/SIGTERM; ``ready(url, status)``
+    is called once the socket listens. Raises CorlError (a refused run or bind) or OSError (the port)."""
+    server, sock, run, url = _server(store, task, method=method, seed=seed, host=host, port=port, token=token,
+                                     rate=rate, video=video, access_log=access_log)
+    try:
+        if ready is not None:
+            ready(url, run.status)
+        server.run(sockets=[sock])
+    finally:
+        run.close()
+        sock.close()
+
+
+@contextlib.contextmanager
+def background(store, task: str, *, method: str | None = None, seed: int | None = None, port: int = 0,
+               token: str | None = None, rate: float = 100.0, video: bool = False, timeout: float = 60.0):
+    """A server on 127.0.0.1 in a thread of this process; yields its URL and stops it on exit."""
+    server, sock, run, url = _server(store, task, method=method, seed=seed, host="127.0.0.1", port=port,
+                                     token=token, rate=rate, video=video, access_log=False)
+    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, name="corl-serve", daemon=True)
+    try:
+        thread.start()
+        started = threading.Event()
+        for _ in range(int(timeout / 0.01)):
+            if server.started or not thread.is_alive():
+                started.set()
+                break
+            started.wait(0.01)
+        if not server.started:
+            raise RuntimeError(f"the server did not start within {timeout} s")
+        yield url
+    finally:
+        server.handle_exit(None, None)
+        thread.join(timeout)
+        run.close()
+        sock.close()

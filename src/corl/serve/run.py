@@ -1,0 +1,336 @@
+"""The run a server holds: one learner bound to its store, answering ``ask`` and ``tell`` as JSON.
+
+:class:`ServedRun` knows nothing of HTTP (:mod:`corl.serve.app` puts it on the network). It opens
+the store for writing once, with the store's writer lock (:class:`corl.store.RunStore`), and holds
+it until :meth:`close`: while a server runs, no other process writes that store.
+
+Every change is committed before it is answered, and both calls are idempotent, so a client can
+repeat any request after a lost response or a server restart:
+
+* ``ask`` hands out the pending trial again while one is pending; otherwise it asks the learner,
+  commits the proposal, then answers.
+* ``tell`` of the pending trial commits the outcome, then tells the learner. A trial already told
+  with the same outcome is answered again (``"repeated": true``); another outcome for it, or a trial
+  that is not pending, is a :class:`Conflict` (HTTP 409).
+
+Reopened on the same store after a kill, the run replays its trials (:meth:`StoredRun.open`) and
+goes on exactly where it stopped: nothing lost, nothing run twice.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from corl.errors import CorlError, InputError, StateError
+from corl.problem import Outcome, Proposal
+from corl.store.records import TrialRecord
+
+__all__ = ["ServedRun", "Conflict", "Broken", "CODE_KEYS"]
+
+# Body keys that would name code or a run: the task is given on the server's command line only.
+CODE_KEYS = ("task", "task_spec", "spec", "module", "factory", "method", "seed", "store", "path")
+_ASK_KEYS = ("raw",)
+_TELL_KEYS = ("trial", "success", "return", "info")
+
+
+class Conflict(StateError):
+    """A request that does not fit the run's state (HTTP 409): a tell of a trial that is not pending."""
+
+
+class Broken(CorlError):
+    """The learner raised after a commit: the server answers nothing more until it is restarted."""
+
+
+@dataclass(frozen=True)
+class Timing:
+    """Seconds one call spent computing (the learner, the reference) and committing to the store."""
+
+    compute: float = 0.0
+    commit: float = 0.0
+
+
+class ServedRun:
+    """The store's latest run (or a new one), its learner in memory, owned by one thread.
+
+    SQLite and the learners are used from a single thread: :attr:`executor` (one worker) opens the
+    store and runs every call that touches the learner or the store; :meth:`ask`, :meth:`tell` and
+    :meth:`snapshot` must run there (``executor.submit``), which serializes them. :attr:`status` and
+    :meth:`trials` read copies and may be read from any thread.
+
+    Parameters
+    ----------
+    store_path : the run store; created when missing.
+    task_spec : the task as the command line names it (``synthetic``, ``package.module:make_task``).
+    method, seed : of a new run (defaults CORL+PIBU for a built-in task, CORL for your own; seed 0);
+        with a run in the store, only that run's values are accepted.
+    rate : Hz of the joint trajectories handed out (``task.reference(w, rate)``).
+    """
+
+    def __init__(self, store_path: str | Path, task_spec: str, *, method: str | None = None,
+                 seed: int | None = None, rate: float = 100.0) -> None:
+        from concurrent.futures import ThreadPoolExecutor
+
+        self.executor = ThreadPoolExecutor(1, thread_name_prefix="corl-learner")
+        try:
+            self.executor.submit(self._open, store_path, task_spec, method, seed, rate).result()
+        except BaseException:
+            self.executor.shutdown()
+            raise
+
+    def _open(self, store_path, task_spec: str, method, seed, rate) -> None:
+        from corl.methods import DEFAULT_METHOD, METHODS
+        from corl.session import StoredRun, check_rate
+        from corl.store import RunStatus, RunStore
+        from corl.tasks.registry import BUILTIN_TASKS, load_task
+
+        if method is not None and method not in METHODS:
+            raise InputError(f"unknown method '{method}'; choose from {', '.join(METHODS)}")
+        self.rate = check_rate(rate)
+        self.store_path = Path(store_path)
+        self.task_spec = task_spec
+        self.lock = threading.Lock()
+        self.version = 0  # grows with every change a client can see
+        self.broken: str | None = None
+        self._asked: Proposal | None = None  # asked of the learner, not handed out yet
+        self.db = RunStore(self.store_path)  # the writer lock, held until close()
+        try:
+            info = self.db.latest_run()
+            if info is not None:
+                for flag, given, stored in (("--method", method, info.method), ("--seed", seed, info.seed)):
+                    if given is not None and given != stored:
+                        raise InputError(f"{flag} {given} differs from run {info.id} in {self.store_path} ({stored}); "
+                                         "drop the flag to serve that run, or give another --store")
+                if info.config.get("contextual"):
+                    raise InputError(f"run {info.id} in {self.store_path} learns in a context; corl serve serves "
+                                     "runs without one: use corl ask/tell for it, or another --store")
+                self.task = load_task(task_spec, seed=int(info.seed or 0))
+                self.session = StoredRun.open(self.db, self.task, info.id)
+                if info.status is not RunStatus.FINISHED and self.session.done:
+                    self.db.set_status(info.id, RunStatus.FINISHED)
+            else:
+                seed = 0 if seed is None else seed
+                self.task = load_task(task_spec, seed=seed)
+                method = method or ("CORL+PIBU" if task_spec in BUILTIN_TASKS else DEFAULT_METHOD)
+                self.session = StoredRun.new(self.task, task_spec=task_spec, method=method, seed=seed).attach(self.db)
+            self.info = self.db.run(self.session.run_id)
+            pending = self.db.pending(self.session.run_id)
+            self.pending: Proposal | None = None if pending is None else pending.proposal
+            J = dict(getattr(self.session.learner, "J_history", ()) or ())
+            self.records = self.db.trials(self.session.run_id)
+            self._rows = [_row(r.proposal, r.outcome, _finite(J.get(r.proposal.index))) for r in self.records]
+            told = [r for r in self._rows if r["success"]]
+            top = max(told, key=lambda r: r["return"], default=None)  # the first of equal returns
+            self._best_told = None if top is None else {k: top[k] for k in ("trial", "return", "theta")}
+        except BaseException:
+            self.db.close()
+            raise
+        self.status = self._status()
+
+    def close(self) -> None:
+        """Release the store (and its writer lock), after the call in progress."""
+        self.executor.submit(self.db.close).result()
+        self.executor.shutdown()
+
+    # -- ask -----------------------------------------------------------------------------------
+    def ask(self, body: dict) -> tuple[dict, Timing]:
+        """The next trial as JSON: the pending one while one is pending, else a new one, committed first."""
+        raw = _check_keys(body, _ASK_KEYS, "ask").get("raw", False)
+        if not isinstance(raw, bool):
+            raise InputError(f"'raw' must be true or false, got {raw!r}")
+        with self.lock:
+            self._usable()
+            t0 = time.perf_counter()
+            if not raw and getattr(self.task, "reference", None) is None:  # corl.problem.HasReference
+                raise InputError(f"task '{self.task.name}' has no reference(w, rate), so corl cannot turn w into a "
+                                 "joint trajectory: ask with {\"raw\": true} (Client(url, raw=True)) for the raw "
+                                 "parameters w, which are NOT a joint trajectory (never send them to a robot), or "
+                                 "add reference() to the task")
+            if self.pending is None and self.session.done:
+                raise Conflict(f"run {self.session.run_id} has finished ({_reason(self.session)}): there is no next "
+                               "trial; GET /status shows the result, and another --store starts a new run")
+            proposal = self.pending
+            if proposal is None:
+                proposal = self._asked = self._asked or self.session.learner.ask()
+            reference = None if raw else self._reference(proposal)
+            t1 = time.perf_counter()
+            commit = 0.0
+            if self.pending is None:
+                self.session.hand_out(proposal)  # committed before it is answered
+                commit = self.session.commit_seconds
+                self.pending, self._asked = proposal, None
+                self.records.append(TrialRecord(proposal, None, "", None))
+                self._rows.append(_row(proposal, None, None))
+                self._changed()
+            t2 = time.perf_counter()
+        answer = {"trial": proposal.index, "run": self.session.run_id, "step": proposal.step,
+                  "round": proposal.round, "theta": proposal.theta.tolist()}
+        if raw:
+            answer["w"] = proposal.w.tolist()
+            answer["raw"] = "the raw parameters w, NOT a joint trajectory: never send them to a robot"
+        else:
+            answer["reference"] = reference
+        return answer, Timing(t1 - t0 + (t2 - t1 - commit), commit)
+
+    def _reference(self, proposal: Proposal) -> dict:
+        from corl.session import trajectory_of
+
+        t, q = trajectory_of(self.task, proposal.w, self.rate)
+        names = getattr(self.task, "joint_names", None) or [f"q{j}" for j in range(q.shape[1])]
+        return {"t": t.tolist(), "q": q.tolist(), "joint_names": list(names), "rate": self.rate}
+
+    # -- tell ----------------------------------------------------------------------------------
+    def tell(self, body: dict) -> tuple[dict, Timing]:
+        """Commit the outcome of the pending trial, then tell the learner; a repeated tell is answered again."""
+        _check_keys(body, _TELL_KEYS, "tell")
+        for key in ("trial", "success"):
+            if key not in body:
+                raise InputError(f"tell needs '{key}': {{\"trial\": i, \"success\": true|false, \"return\": number|null}}")
+        index = body["trial"]
+        if isinstance(index, bool) or not isinstance(index, int) or index < 0:
+            raise InputError(f"'trial' must be the index of the asked trial (an integer >= 0), got {index!r}")
+        info = body.get("info", {})
+        if not isinstance(info, dict):
+            raise InputError(f"'info' must be a JSON object, got {type(info).__name__}")
+        success, value = body["success"], body.get("return")
+        if not isinstance(success, bool):
+            raise InputError(f"'success' must be true or false, got {success!r}")
+        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))):
+            raise InputError(f"'return' must be a number or null, got {value!r}")
+        if not success and value is not None:
+            raise InputError("a failed trial is told without a return: send \"return\": null (or success true)")
+        outcome = Outcome(success, value, info)  # a NaN, a missing return on success: InputError
+        with self.lock:
+            self._usable()
+            t0 = time.perf_counter()
+            if index < len(self._rows) and self._rows[index]["success"] is not None:
+                return self._repeated(index, outcome), Timing()
+            if self.pending is None or index != self.pending.index:
+                now = ("no trial is pending: POST /ask first" if self.pending is None
+                       else f"the pending trial is {self.pending.index}")
+                raise Conflict(f"trial {index} is not pending, so it cannot be told: {now}")
+            try:
+                self.session.tell(outcome)  # committed, then the learner is told
+            except Exception as exc:
+                if self.db.pending(self.session.run_id) is not None:
+                    raise  # refused before anything was written (a failed demonstration, ...)
+                self._told(index, outcome)
+                self.broken = f"the learner raised {type(exc).__name__} after trial {index} was stored"
+                raise Broken(f"{self.broken} ({exc}); the store keeps every told trial: restart corl serve on "
+                             "the same store") from exc
+            self._told(index, outcome)
+            t1 = time.perf_counter()
+        status = self.status
+        commit = self.session.commit_seconds  # the store; the rest is the learner's tell (its next step)
+        return {"trial": index, "success": outcome.success, "return": outcome.return_, "done": status["done"],
+                "stop_reason": status["stop_reason"], "trials": status["trials"], "failures": status["failures"]}, \
+            Timing(t1 - t0 - commit, commit)
+
+    def _told(self, index: int, outcome: Outcome) -> None:
+        history = getattr(self.session.learner, "J_history", None) or [(None, None)]
+        J = history[-1][1] if history[-1][0] == index else None
+        self._rows[index] = _row(self.pending, outcome, _finite(J))
+        if outcome.success and (self._best_told is None or outcome.return_ > self._best_told["return"]):
+            self._best_told = {"trial": index, "return": outcome.return_, "theta": self._rows[index]["theta"]}
+        self.records[index] = TrialRecord(self.pending, outcome, "", "")
+        self.pending = None
+        self._changed()
+
+    def _repeated(self, index: int, outcome: Outcome) -> dict:
+        row = self._rows[index]
+        stored = self.records[index].outcome
+        same = (stored.success == outcome.success and stored.return_ == outcome.return_
+                and dict(stored.info) == dict(outcome.info))
+        if not same:
+            told = "success" if stored.success else "failure"
+            raise Conflict(f"trial {index} was already told ({told}, return {stored.return_}); a trial is told once, "
+                           "and this tell says otherwise: nothing was changed")
+        status = self.status
+        return {"trial": index, "success": row["success"], "return": row["return"], "done": status["done"],
+                "stop_reason": status["stop_reason"], "trials": status["trials"], "failures": status["failures"],
+                "repeated": True}
+
+    # -- reading -------------------------------------------------------------------------------
+    def snapshot(self):
+        """``(version, records, J (d,), return map data or the reason there is none, theta labels)``,
+        copies the dashboard draws from (run it in :attr:`executor`)."""
+        from corl.experiments.figures import return_map_data
+
+        J = np.array([np.nan if r["J"] is None else r["J"] for r in self._rows], dtype=float)
+        try:
+            data = return_map_data(self.session.learner)
+        except ValueError:
+            data = ("No return map yet: it appears with the first black-box step over theta (a method over w "
+                    "has none).")
+        labels = tuple(getattr(self.task, "theta_labels", ()) or ("theta 1", "theta 2"))
+        return self.version, list(self.records), J, data, labels
+
+    def last_told(self) -> tuple | None:
+        """``(index, w of the demonstration, w of the last told trial)``, or None before the first tell."""
+        told = [r for r in self.records if r.outcome is not None]
+        return None if not told else (told[-1].index, self.records[0].proposal.w, told[-1].proposal.w)
+
+    def trials(self, since: int = 0) -> list[dict]:
+        """The trials from index ``since`` on, oldest first (a pending one has ``success`` null)."""
+        rows = self._rows
+        return rows[max(0, since):]
+
+    def _usable(self) -> None:
+        if self.broken:
+            raise Broken(f"{self.broken}; the store keeps every told trial: restart corl serve on the same store")
+
+    def _changed(self) -> None:
+        self.version += 1
+        self.status = self._status()
+
+    def _status(self) -> dict:
+        """What GET /status answers: counts, the pending trial, the best so far, done and why."""
+        s = self.session
+        told = [r for r in self._rows if r["success"] is not None]
+        best = s.best
+        reason = getattr(s.learner, "stop_reason", None)
+        return {
+            "run": s.run_id, "task": self.task.name, "task_spec": self.task_spec, "method": self.info.method,
+            "seed": self.info.seed, "store": str(self.store_path), "trials": len(told),
+            "failures": sum(not r["success"] for r in told),
+            "pending": None if self.pending is None else self.pending.index,
+            "step": self._rows[-1]["step"] if self._rows else None,
+            "round": self._rows[-1]["round"] if self._rows else None,
+            "best": None if best is None else {"theta": np.asarray(best.theta).tolist(), "return": float(best.return_),
+                                               "J": _finite(getattr(best, "J", None))},
+            "best_told": self._best_told,
+            "done": bool(s.done), "stop_reason": None if reason is None else getattr(reason, "value", str(reason)),
+            "theta_dim": self.task.theta_bounds.dim, "version": self.version,
+        }
+
+
+def _check_keys(body, allowed: tuple[str, ...], what: str) -> dict:
+    if not isinstance(body, dict):
+        raise InputError(f"the body of {what} must be a JSON object, got {type(body).__name__}")
+    code = [k for k in body if k in CODE_KEYS]
+    if code:
+        raise InputError(f"a request cannot name '{code[0]}': the task, method, seed and store are given on the "
+                         "server's command line only (corl serve --task ...), never by a client")
+    unknown = [k for k in body if k not in allowed]
+    if unknown:
+        raise InputError(f"unknown field '{unknown[0]:.40}' in {what}; it takes {', '.join(allowed)}")
+    return body
+
+
+def _row(p: Proposal, o: Outcome | None, J: float | None) -> dict:
+    return {"trial": p.index, "step": p.step, "round": p.round, "theta": np.asarray(p.theta).tolist(),
+            "success": None if o is None else o.success, "return": None if o is None else o.return_, "J": J}
+
+
+def _finite(x) -> float | None:
+    return float(x) if x is not None and math.isfinite(float(x)) else None
+
+
+def _reason(session) -> str:
+    reason = getattr(session.learner, "stop_reason", None)
+    return f"stop reason {getattr(reason, 'value', reason)}"
