@@ -82,6 +82,9 @@ def optimize(f: Callable[[np.ndarray], object], bounds, start, *, method: str = 
         (CORL, PIBU, SAL grow the safe set from it), or a bad value from ``f`` (a NaN return, a success
         without a return, ...).
     RolloutError : ``f`` raised.
+
+    Notes
+    -----
     In both cases the error's ``optimizer`` attribute holds the optimizer, every trial so far told
     and the failed one still pending: nothing is lost.
     """

@@ -175,6 +175,8 @@ class Task(Protocol):
     theta_bounds : the box ``theta`` is searched in, (m,) each.
     w_bounds : a box for methods that search ``w`` directly, or None.
 
+    Notes
+    -----
     The optional members corl uses when present are the protocols below (:data:`OPTIONAL_MEMBERS`):
     ``method_settings()``, ``trajectory_problem(theta)``, ``projection_metric``, ``spline``, ``retimed(time_map)``,
     ``pinned_times``, ``reference(w, rate)``, ``joint_names``, ``theta_labels``,

@@ -117,7 +117,9 @@ class ContextualCORL:
     seed : seeds the black-box step.
     failed : motions (n,) known to have failed in this scene (earlier runs there): never proposed again.
 
-    Raises :class:`InputError` when no start can be realised in the scene.
+    Raises
+    ------
+    InputError : no start can be realised in the scene.
     """
 
     def __init__(self, task: Task, context, skill: Skill, *, settings=None, seed: int = 0, failed=()) -> None:

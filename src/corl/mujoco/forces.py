@@ -52,6 +52,8 @@ def remove_static_load(force_raw: np.ndarray, rotations: np.ndarray, mass: float
     mass : kg below the sensor.
     gravity : (3,) the model's gravity (``model.opt.gravity``).
 
+    Notes
+    -----
     The sensor reads ``m g`` (world -z) as the force the parent holds the subtree with, i.e.
     ``+m |g| z_world`` expressed in the site frame; that is subtracted.
     """
@@ -116,6 +118,8 @@ class ContactPairs:
     model : mujoco.MjModel
     geoms_a, geoms_b : geom ids (each a non-empty sequence of ids in ``[0, model.ngeom)``).
 
+    Notes
+    -----
     ``ContactPairs(model, a, b)(data)`` is ``touching(data, a, b)``; ``.force(data)`` is
     ``contact_force(model, data, a, b)``, bit for bit. Each id of ``a`` and ``b`` gets a compact
     number (0 for every other geom, and for the -1 that a flex contact has in ``geom``); a

@@ -120,6 +120,8 @@ def urdf_to_mjcf(urdf_text: str, *, moving: Sequence[str] | None = None, lock: S
         path is taken relative to ``base_dir``.
     base_dir : folder of the URDF file.
 
+    Notes
+    -----
     Visual, gazebo and transmission blocks and mimic tags are dropped (MuJoCo reads no .dae and
     couples joints with equalities instead); collisions are named ``collision0, 1, ...``.
 
@@ -183,6 +185,8 @@ def load_spec(source, *, moving: Sequence[str] | None = None, lock: Sequence[str
         world body that hold the ``moving`` joints (see :func:`corl.mujoco.scene.lock_joints`).
     package_dirs : URDF only, see :func:`urdf_to_mjcf`.
 
+    Notes
+    -----
     A locked joint holds its zero position: in a URDF it becomes ``fixed``; in an MJCF it is
     deleted, which welds its body to the parent in the pose of ``qpos = 0`` (with the actuators,
     sensors and joint equalities that need it, and the keyframes). Joints of the other bodies of an
@@ -192,7 +196,7 @@ def load_spec(source, *, moving: Sequence[str] | None = None, lock: Sequence[str
     Returns
     -------
     mujoco.MjSpec : add the scene, servos (:func:`corl.mujoco.add_servos`) and sensors, then
-    compile it into a :class:`Robot` with :meth:`Robot.from_spec`.
+        compile it into a :class:`Robot` with :meth:`Robot.from_spec`.
 
     Raises
     ------

@@ -59,6 +59,8 @@ class OptimizerSettings:
     seib : CORL's (SEIB's) acquisition settings, e.g. ``SEIBConfig(far_reach=())`` never looks far
         past what it has tried before stopping (fewer trials and failures, no valley crossing).
 
+    Notes
+    -----
     The defaults are the paper's synthetic values, in the synthetic benchmark's units;
     :meth:`for_box` scales them to any box.
     """

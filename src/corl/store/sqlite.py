@@ -36,6 +36,8 @@ class RunStore:
     create : create the file when it does not exist (writers only).
     readonly : open for reading only; never blocks and is never blocked by a writer.
 
+    Notes
+    -----
     Every method that writes has committed to disk when it returns. A RunStore is used from the
     thread that opened it; use it as a context manager or call :meth:`close`.
     """

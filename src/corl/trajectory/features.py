@@ -193,6 +193,8 @@ class JointLimitFeature:
     lower, upper : (Q,) joint limits (``-inf``/``inf`` for none), ``lower <= upper``.
     weight : v > 0.
 
+    Notes
+    -----
     The value is (c Q,) time-major; its Jacobian keeps only the rows of violated limits (the
     hinge's derivative is taken as 0 exactly on a limit).
     """

@@ -46,6 +46,8 @@ class TaskSpaceFeature:
         has just evaluated); else :meth:`curvature` differentiates ``dy/dq`` by forward
         differences (Q extra calls of fk per time).
 
+    Notes
+    -----
     The value is (c d,) time-major. Only the ``(degree + 1) Q`` parameters of the control points
     active at each t_k enter its Jacobian row, so ``Jh^T Jh`` stays local (banded).
     """
