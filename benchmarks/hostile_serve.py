@@ -104,6 +104,8 @@ def request(url: str, method: str, path: str, body: bytes | None = None, headers
 
 def _json_line(status: int, data: bytes) -> tuple[bool, str]:
     """(the body is the JSON one-liner an error must be, its message)."""
+    if status == 200 and not data:  # HEAD
+        return True, "(no body)"
     try:
         payload = json.loads(data)
     except ValueError:
@@ -182,6 +184,15 @@ def request_probes(url: str) -> list[Result]:
         ("POST /ask with an unknown field", 400, "POST", "/ask", b'{"rwa": true}', js, False),
         ("POST /tell of a trial not pending", 409, "POST", "/tell", b'{"trial": 5, "success": false}', js, False),
         ("POST /tell of trial 0 told otherwise", 409, "POST", "/tell", b'{"trial": 0, "success": false}', js, False),
+        ("POST /ask with no body as text/plain (a cross-site form)", 415, "POST", "/ask", b"",
+         {**auth, "Content-Type": "text/plain"}, False),
+        ("POST /ask with no body and no type", 415, "POST", "/ask", b"", auth, False),
+        ("POST /tell with return 10**400 (an int)", 400, "POST", "/tell",
+         b'{"trial": 1, "success": true, "return": 1' + b"0" * 400 + b"}", js, False),
+        ("POST /tell with 1e400 inside info", 400, "POST", "/tell",
+         b'{"trial": 1, "success": false, "info": {"x": 1e400}}', js, False),
+        ("GET /trials?since=\u00b2 (a digit, not ASCII)", 400, "GET", "/trials?since=%C2%B2", None, auth, False),
+        ("GET /trials?since= 5000 digits", 400, "GET", "/trials?since=" + "9" * 5000, None, auth, False),
         ("POST /tell as text/plain", 415, "POST", "/tell", b'{"trial": 1, "success": false}',
          {**auth, "Content-Type": "text/plain"}, False),
         ("POST /tell with a NaN return", 400, "POST", "/tell", b'{"trial": 1, "success": true, "return": NaN}',
@@ -203,6 +214,7 @@ def request_probes(url: str) -> list[Result]:
         ("GET /nowhere", 404, "GET", "/nowhere", None, auth, False),
         ("DELETE /ask", 405, "DELETE", "/ask", None, auth, False),
         ("GET /ask", 405, "GET", "/ask", None, auth, False),
+        ("HEAD /events (a stream without end)", 200, "HEAD", "/events", None, auth, False),
         ("GET /trials?since=-1", 400, "GET", "/trials?since=-1", None, auth, False),
         ("GET /figures/../../etc/passwd.png", 404, "GET", "/figures/..%2F..%2Fetc%2Fpasswd.png", None, auth, False),
         ("GET /static/../run.py", 404, "GET", "/static/..%2Frun.py", None, auth, False),

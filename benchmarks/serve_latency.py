@@ -133,6 +133,55 @@ def shell_round_trips(store: Path, repeats: int) -> float:
     return float(np.median(times))
 
 
+def dashboard_cost(open_dashboard: bool) -> dict:
+    """A whole Panda-switch run through ``corl serve`` (22 trials, 500 Hz trajectories of 1,251 x 8 numbers),
+    with or without a dashboard's event stream open: medians (s) of the round trip and of the learner's compute."""
+    import http.client
+    import socket
+    import threading
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from examples.panda_switch import make_task
+
+    panda = make_task()
+    with tempfile.TemporaryDirectory(prefix="corl-dashboard-cost-") as tmp:
+        proc = subprocess.Popen([*CORL, "serve", "--store", str(Path(tmp) / "p.corl"), "--task",
+                                 "examples.panda_switch:make_task", "--rate", "500", "--port", "0"],
+                                cwd=Path(__file__).resolve().parents[1], env=_env(), stdout=subprocess.PIPE,
+                                stderr=subprocess.DEVNULL, text=True)
+        try:
+            port = int(json.loads(proc.stdout.readline())["url"].rsplit(":", 1)[1])
+            if open_dashboard:  # what a browser's EventSource does; the figures are drawn while it listens
+                sse = socket.create_connection(("127.0.0.1", port))
+                sse.sendall(b"GET /events HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+                threading.Thread(target=lambda: [sse.recv(1 << 16) for _ in iter(int, 1)], daemon=True).start()
+            conn = http.client.HTTPConnection("127.0.0.1", port, timeout=120)
+            headers = {"Content-Type": "application/json"}
+            rows = []
+            while True:
+                t0 = time.perf_counter()
+                conn.request("POST", "/ask", b"{}", headers)
+                r = conn.getresponse()
+                trial = json.loads(r.read())
+                t1 = time.perf_counter()
+                c1, _ = _timing(r.getheader("Server-Timing"))
+                outcome = panda.execute(np.array(trial["reference"]["t"]), np.array(trial["reference"]["q"]))
+                body = json.dumps({"trial": trial["trial"], "success": outcome.success, "return": outcome.return_})
+                t2 = time.perf_counter()
+                conn.request("POST", "/tell", body, headers)
+                r = conn.getresponse()
+                told = json.loads(r.read())
+                c2, _ = _timing(r.getheader("Server-Timing"))
+                rows.append((t1 - t0 + time.perf_counter() - t2, c1 + c2))
+                if told["done"]:
+                    break
+        finally:
+            proc.terminate()
+            proc.wait(30)
+    return {"trials": len(rows), "round_trip": float(np.median([r[0] for r in rows])),
+            "compute": float(np.median([r[1] for r in rows]))}
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sizes", default="10,100,1000", help="told trials, comma-separated")
@@ -163,6 +212,12 @@ def main() -> int:
             print(f"{n:6d}  {1e3 * served['round_trip']:8.2f}  {1e3 * served['compute']:8.2f}  "
                   f"{1e3 * served['commit']:7.2f}  {1e3 * (served['round_trip'] - served['compute']):18.2f}  "
                   f"{1e3 * shell:14.0f}  {shell / served['round_trip']:13.0f}x", flush=True)
+    print("\nwhat an open dashboard costs: examples.panda_switch, a whole run, twice each way, medians in ms")
+    print(f"{'dashboard':>9}  {'trials':>6}  {'round trip':>10}  {'compute':>8}  {'rest':>6}")
+    for open_dashboard in (False, True, False, True):
+        d = dashboard_cost(open_dashboard)
+        print(f"{'open' if open_dashboard else 'closed':>9}  {d['trials']:6d}  {1e3 * d['round_trip']:10.1f}  "
+              f"{1e3 * d['compute']:8.1f}  {1e3 * (d['round_trip'] - d['compute']):6.1f}", flush=True)
     ok = True
     for n, served, shell in results:
         if n == 1000:

@@ -167,3 +167,67 @@ def test_the_robot_client_example_learns_what_a_local_run_learns(tmp_path, capsy
     assert [(r.outcome.success, r.outcome.return_) for r in served] == \
         [(r.outcome.success, r.outcome.return_) for r in expected]
     assert f"return {local.best.return_:.4f}" in capsys.readouterr().out
+
+
+def test_a_learner_that_raises_after_the_commit_stops_the_server_visibly(tmp_path, monkeypatch):
+    from corl.learner import CORL
+
+    task = load_task("synthetic")
+    with background(tmp_path / "s.corl", "synthetic") as url:
+        c = Client(url, raw=True)
+        c.tell(task.rollout(c.ask().w))
+        trial = c.ask()
+        monkeypatch.setattr(CORL, "tell", lambda self, outcome: 1 / 0)
+        with pytest.raises(ServerError, match="the learner raised ZeroDivisionError after trial 1 was stored") as info:
+            c.tell(task.rollout(trial.w))
+        assert info.value.status == 503
+        status = c.status()
+        assert status["broken"].startswith("the learner raised") and status["trials"] == 2  # told, committed
+        with pytest.raises(ServerError, match="restart corl serve"):
+            c.ask()
+        monkeypatch.undo()
+    with background(tmp_path / "s.corl", "synthetic") as url:  # restarted: the told trial is there, once
+        c = Client(url, raw=True)
+        assert c.status()["trials"] == 2 and c.status()["broken"] is None
+        assert c.tell(task.rollout(trial.w), trial=1)["repeated"] is True
+
+
+def test_a_reference_that_fails_is_the_task_s_error_and_hands_nothing_out(tmp_path, monkeypatch):
+    (tmp_path / "badref.py").write_text(
+        "import numpy as np\n"
+        "from examples.panda_switch import PandaSwitchTask\n"
+        "class Bad(PandaSwitchTask):\n"
+        "    name = 'bad_reference'\n"
+        "    def reference(self, w, rate=500.0):\n"
+        "        t, q = super().reference(w, rate)\n"
+        "        q[3, 2] = np.nan\n"
+        "        return t, q\n"
+        "def make():\n"
+        "    return Bad()\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with background(tmp_path / "s.corl", "badref:make") as url:
+        with pytest.raises(ServerError, match="the task's reference.*failed on trial 0") as info:
+            Client(url).ask()
+        assert info.value.status == 500
+        assert Client(url).status()["pending"] is None  # nothing handed out
+        assert Client(url, raw=True).ask().index == 0  # the raw parameters still can be
+
+
+def test_a_store_that_cannot_commit_is_503_and_the_same_tell_succeeds_later(tmp_path, monkeypatch):
+    """A full disk (here: add_outcome raising what SQLite's 'disk is full' becomes) is the store's problem,
+    not the request's: 503, nothing written, and the same tell goes through once there is room."""
+    task = load_task("synthetic")
+    with background(tmp_path / "s.corl", "synthetic") as url:
+        c = Client(url, raw=True)
+        trial = c.ask()
+        outcome = task.rollout(trial.w)
+
+        def full(self, *args, **kwargs):
+            raise StoreError("could not store the outcome: database or disk is full; nothing was written")
+
+        monkeypatch.setattr(RunStore, "add_outcome", full)
+        with pytest.raises(ServerError, match="disk is full") as info:
+            c.tell(outcome)
+        assert info.value.status == 503 and c.status()["pending"] == 0 and c.status()["broken"] is None
+        monkeypatch.undo()
+        assert c.tell(outcome)["trials"] == 1

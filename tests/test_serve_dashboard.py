@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import os
 import re
 import time
 from importlib import resources
@@ -70,14 +71,14 @@ def test_a_tell_shows_up_on_the_page_within_a_second(tmp_path):
 
 
 @pytest.mark.slow
-def test_the_door_dashboard_shows_the_last_told_trial_rendered(tmp_path):
+def test_the_door_dashboard_shows_the_last_told_trial_rendered(tmp_path, monkeypatch):
     """The video comes from a process of its own that loads the task from the server's command line."""
-    import urllib.error
     import urllib.request
 
     import imageio.v3 as iio
 
     chromium_path()
+    monkeypatch.setenv("MUJOCO_GL", os.environ.get("MUJOCO_GL", "egl"))  # read by the video process at its start
     with background(tmp_path / "door.corl", "door", video=True) as url:
         c = Client(url)
         for value in (-1.0, -0.9):  # the demonstration, then the first optimization step

@@ -94,6 +94,7 @@ class Client:
             raise InputError(f"the server's url must look like http://127.0.0.1:8765, got {url!r}")
         self.url = url.rstrip("/")
         self._parts = parts
+        self._prefix = parts.path.rstrip("/")  # a server behind a reverse proxy at http://host/corl
         self.token = token
         self.raw = bool(raw)
         self.timeout = float(timeout)
@@ -194,7 +195,7 @@ class Client:
         while True:
             try:
                 conn = self._connection()
-                conn.request(method, path, body=data, headers=headers)
+                conn.request(method, self._prefix + path, body=data, headers=headers)
                 response = conn.getresponse()
                 payload = response.read()
                 status = response.status
@@ -217,5 +218,5 @@ class Client:
                 raise InputError(message)
             if status == 409:
                 raise StateError(message)
-            raise ServerError(message, status)
+            raise ServerError(message, status)  # 401, 413, 415; 503 (the store, the learner); 500 (the task)
         return answer

@@ -116,8 +116,8 @@ class Outcome:
         if self.return_ is not None:
             try:
                 value = float(self.return_)
-            except (TypeError, ValueError):
-                raise InputError(f"return must be a number, got {self.return_!r}") from None
+            except (TypeError, ValueError, OverflowError):  # OverflowError: an int beyond a float (10**400)
+                raise InputError(f"return must be a finite number, got {str(self.return_)[:40]}") from None
             if not math.isfinite(value):
                 raise InputError(
                     f"return is {value}; a rollout must report a finite return "

@@ -18,6 +18,7 @@ from __future__ import annotations
 import contextlib
 import socket
 import threading
+import time
 from pathlib import Path
 from typing import Callable
 
@@ -115,14 +116,11 @@ def background(store, task: str, *, method: str | None = None, seed: int | None 
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, name="corl-serve", daemon=True)
     try:
         thread.start()
-        started = threading.Event()
-        for _ in range(int(timeout / 0.01)):
-            if server.started or not thread.is_alive():
-                started.set()
-                break
-            started.wait(0.01)
-        if not server.started:
-            raise RuntimeError(f"the server did not start within {timeout} s")
+        deadline = time.monotonic() + timeout
+        while not server.started:
+            if not thread.is_alive() or time.monotonic() > deadline:
+                raise RuntimeError(f"the server on {url} did not start within {timeout} s")
+            time.sleep(0.01)
         yield url
     finally:
         server.handle_exit(None, None)

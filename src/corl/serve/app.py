@@ -22,13 +22,14 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
+import math
 import sys
 from importlib import resources
 
 from corl.errors import CorlError, InputError
 from corl.serve.guard import MAX_BODY_BYTES, Guard, HTTPProblem
 from corl.serve.responses import json_response, one_line, problem_response
-from corl.serve.run import Broken, Conflict, ServedRun
+from corl.serve.run import Broken, Conflict, ServedRun, TaskCodeError
 
 __all__ = ["create_app", "Notifier"]
 
@@ -86,17 +87,24 @@ async def _read_json(request) -> dict:
             raise HTTPProblem(413, f"the body is larger than {MAX_BODY_BYTES} bytes; send less info with the trial")
         chunks.append(chunk)
     data = b"".join(chunks)
+    kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if kind != "application/json":  # also for an empty body: a cross-site form cannot send this type
+        raise HTTPProblem(415, f"a POST needs 'Content-Type: application/json' (and a JSON body, {{}} for none), "
+                               f"got {kind or 'none'!r}")
     if not data.strip():
         return {}
-    kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
-    if kind != "application/json":
-        raise HTTPProblem(415, f"the body must be JSON with 'Content-Type: application/json', got {kind or 'none'!r}")
 
     def refuse(token):
         raise ValueError(f"{token} is not a number JSON allows")
 
+    def finite(text):
+        value = float(text)
+        if not math.isfinite(value):
+            raise ValueError(f"{text[:40]} is beyond a float's range")
+        return value
+
     try:
-        return json.loads(data.decode("utf-8"), parse_constant=refuse)
+        return json.loads(data.decode("utf-8"), parse_constant=refuse, parse_float=finite)
     except (UnicodeDecodeError, ValueError, RecursionError) as exc:
         raise HTTPProblem(400, f"the body is not valid JSON: {one_line(str(exc), 120)}") from None
 
@@ -105,13 +113,19 @@ def _timing_header(timing) -> dict:
     return {"Server-Timing": f"compute;dur={timing.compute * 1e3:.3f}, commit;dur={timing.commit * 1e3:.3f}"}
 
 
-def _status_of(exc: Exception) -> int:
+def _status_of(exc: BaseException) -> int:
+    """400: the request; 409: the run's state; 503: the store or the learner, worth a retry after a fix
+    (a full disk, a learner that raised); 500: the task's code or corl itself."""
+    from corl.store import StoreError
+
     if isinstance(exc, HTTPProblem):
         return exc.status
-    if isinstance(exc, (Conflict,)):
+    if isinstance(exc, Conflict):
         return 409
-    if isinstance(exc, Broken):
+    if isinstance(exc, (Broken, StoreError)):
         return 503
+    if isinstance(exc, TaskCodeError):
+        return 500
     if isinstance(exc, InputError):
         return 400
     if isinstance(exc, CorlError):
@@ -142,9 +156,9 @@ def create_app(run: ServedRun, *, token: str | None = None, loopback: bool = Tru
         try:
             payload = await _read_json(request) if body else {}
             answer, timing = await asyncio.get_running_loop().run_in_executor(run.executor, call, payload)
-        except Exception as exc:  # every error is one JSON line
+        except (Exception, SystemExit) as exc:  # every error is one JSON line; a task's sys.exit() too
             status = _status_of(exc)
-            if status == 500:
+            if status == 500 and not isinstance(exc, TaskCodeError):
                 print(f"corl serve: internal error {type(exc).__name__}: {one_line(str(exc), 300)}", file=sys.stderr)
                 message = f"internal error ({type(exc).__name__}: {exc}); the store keeps every told trial"
             else:
@@ -167,11 +181,14 @@ def create_app(run: ServedRun, *, token: str | None = None, loopback: bool = Tru
 
     async def trials(request):
         since = request.query_params.get("since", "0")
-        if not since.isdigit():
+        if not (since.isascii() and since.isdigit() and len(since) <= 12):
             return problem_response(HTTPProblem(400, f"'since' must be a trial index (an integer >= 0), got {since!r:.40}"))
         return json_response({"run": run.session.run_id, "trials": run.trials(int(since))})
 
     async def events(request):
+        if request.method == "HEAD":  # headers only: a stream that never ends has no length to tell
+            return Response(media_type="text/event-stream", headers={"Cache-Control": "no-store"})
+
         async def stream():
             notifier.subscribers += 1
             if figures is not None:

@@ -1,10 +1,11 @@
 """What the dashboard of ``corl serve`` shows beyond the JSON: figures and the video of the last trial.
 
 :class:`Figures` draws the figures ``corl report`` draws (:func:`corl.experiments.figures.plot_trials`,
-:func:`~corl.experiments.figures.plot_return_map`), in a thread of its own, only while a dashboard
-is open (``GET /events`` has a subscriber): a copy of the data is taken under the run's lock, the
-drawing happens outside it, so a trial is never kept waiting for a figure. Changes that arrive while
-a figure is drawn are drawn once, together, afterwards.
+:func:`~corl.experiments.figures.plot_return_map`) only while a dashboard is open (``GET /events``
+has a subscriber), at most once a second: a copy of the data is taken on the learner's thread
+between two calls, and the drawing (matplotlib and the return map's GP fits) happens in a process
+of its own at low priority (:mod:`corl.serve.render`), so it never holds the learner's interpreter
+lock. Trials told while a figure is drawn are drawn once, together, afterwards.
 
 :class:`Video`, for a task with ``render_comparison(w_demo, w, path)`` (the door), renders the
 demonstration beside the last told trial in a separate process at low priority
@@ -17,15 +18,19 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import pickle
 import subprocess
 import sys
 import tempfile
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["Figures", "Video"]
+__all__ = ["Figures", "Video", "MIN_REDRAW_S"]
+
+MIN_REDRAW_S = 1.0  # at most one redraw a second: trials told meanwhile are drawn together
 
 
 class Figures:
@@ -40,6 +45,7 @@ class Figures:
         self._want = threading.Event()
         self._stopping = False
         self._thread: threading.Thread | None = None
+        self._proc: subprocess.Popen | None = None
         self.run = None
 
     def start(self, run) -> None:
@@ -63,40 +69,48 @@ class Figures:
             self._want.wait()
             self._want.clear()
             if self._stopping:
-                return
+                break
             if self.run.version == self._drawn_for:
                 continue
+            t0 = time.monotonic()
             try:
                 self._draw()
-            except Exception as exc:  # a figure that cannot be drawn is a note, never a dead dashboard
+            except (OSError, ValueError, EOFError) as exc:  # the drawing process died: a note, and a new one next time
+                self._close()
                 self.notes = {"trials": f"the figures could not be drawn ({type(exc).__name__}: {exc})"}
                 self._drawn_for = self.run.version
             self.version += 1
             self.notify()
+            time.sleep(max(0.0, MIN_REDRAW_S - (time.monotonic() - t0)))  # changes meanwhile: drawn together
+        self._close()
 
     def _draw(self) -> None:
-        from corl.experiments.figures import ReturnMapData, plot_return_map, plot_trials
-
         run = self.run
-        version, records, J, data, labels = run.executor.submit(run.snapshot).result()  # copies, drawn here
-        png, notes, note = {}, {}, None
-        if not isinstance(data, ReturnMapData):
-            data, note = None, data
-        elif data.bounds.dim > 2:
-            data, note = None, f"No return map: theta has {data.bounds.dim} dimensions, a map shows 1 or 2."
+        version, records, J, data, labels = run.executor.submit(run.snapshot).result()  # copies, drawn elsewhere
+        if self._proc is None:
+            self._proc = _start_render("--figures")
         with tempfile.TemporaryDirectory(prefix="corl-figures-") as tmp:
-            if any(r.outcome is not None for r in records):
-                png["trials"] = plot_trials(records, J, Path(tmp) / "trials.png").read_bytes()
-            else:
-                notes["trials"] = "No trial told yet."
-            if data is not None:
-                try:
-                    png["return_map"] = plot_return_map(data, Path(tmp) / "return_map.png", labels=labels).read_bytes()
-                except ValueError as exc:
-                    note = f"No return map: {exc}."
-            if note is not None:
-                notes["return_map"] = note
-        self.png, self.notes, self._drawn_for = png, notes, version
+            job = pickle.dumps({"records": records, "J": J, "data": data, "labels": labels, "folder": tmp})
+            self._proc.stdin.write(len(job).to_bytes(8, "little") + job)
+            self._proc.stdin.flush()
+            line = self._proc.stdout.readline()
+            if not line:
+                raise OSError("the drawing process ended")
+            answer = json.loads(line)
+            png = {name: Path(path).read_bytes() for name, path in answer["files"].items()}
+        self.png, self.notes, self._drawn_for = png, answer["notes"], version
+
+    def _close(self) -> None:
+        if self._proc is not None:
+            self._proc.kill()
+            self._proc.wait()
+            self._proc = None
+
+
+def _start_render(*args: str) -> subprocess.Popen:
+    """``python -m corl.serve.render ARGS`` at low priority, its stdin and stdout piped (binary)."""
+    return subprocess.Popen([sys.executable, "-m", "corl.serve.render", *args], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
 
 
 class Video:
@@ -167,11 +181,9 @@ class Video:
 
     def _render(self, index: int, w_demo, w, target: str) -> dict:
         if self._proc is None:
-            self._proc = subprocess.Popen([sys.executable, "-m", "corl.serve.render", self.task_spec, str(self.seed)],
-                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                                          text=True)
+            self._proc = _start_render(self.task_spec, str(self.seed))
         job = {"trial": index, "w_demo": np.asarray(w_demo).tolist(), "w": np.asarray(w).tolist(), "path": target}
-        self._proc.stdin.write(json.dumps(job) + "\n")
+        self._proc.stdin.write(json.dumps(job).encode() + b"\n")
         self._proc.stdin.flush()
         line = self._proc.stdout.readline()
         if not line:

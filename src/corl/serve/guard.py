@@ -22,7 +22,8 @@ from pathlib import Path
 
 from corl.errors import InputError
 
-__all__ = ["MAX_BODY_BYTES", "MIN_TOKEN_CHARS", "COOKIE", "is_loopback", "check_bind", "read_token", "Guard",
+__all__ = ["MAX_BODY_BYTES", "MIN_TOKEN_CHARS", "COOKIE", "is_loopback", "check_bind", "check_token", "read_token",
+           "Guard",
            "HTTPProblem"]
 
 MAX_BODY_BYTES = 1 << 20  # 1 MiB: a tell with a large info (a force trace) fits; anything larger is refused
@@ -51,8 +52,19 @@ def is_loopback(host: str) -> bool:
         return False
 
 
+def check_token(text: str, where: str = "the token") -> str:
+    """``text`` if it is a usable token: at least 16 printable characters without spaces (InputError)."""
+    if not isinstance(text, str) or len(text) < MIN_TOKEN_CHARS or not text.isprintable() or \
+            any(c.isspace() for c in text):
+        raise InputError(f"{where} must hold one secret of at least {MIN_TOKEN_CHARS} printable characters "
+                         f"without spaces; make one: {_TOKEN_HINT}")
+    return text
+
+
 def check_bind(host: str, token: str | None) -> None:
-    """Refuse a non-loopback ``host`` without a token (InputError, one line)."""
+    """Refuse a non-loopback ``host`` without a token, and a token too weak to be one (InputError, one line)."""
+    if token is not None:
+        check_token(token)
     if not is_loopback(host) and token is None:
         raise InputError(f"corl serve listens on {host} only with a token, since anyone who reaches that address "
                          f"could tell trials: pass --token-file F (make one: {_TOKEN_HINT}), or drop --host to "
@@ -68,9 +80,7 @@ def read_token(path: str | Path) -> str:
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"--token-file {path} cannot be read ({getattr(exc, 'strerror', None) or exc}); "
                          f"make one: {_TOKEN_HINT}") from None
-    if len(text) < MIN_TOKEN_CHARS or not text.isprintable() or any(c.isspace() for c in text):
-        raise InputError(f"--token-file {path} must hold one secret of at least {MIN_TOKEN_CHARS} printable "
-                         f"characters without spaces; make one: {_TOKEN_HINT}")
+    check_token(text, f"--token-file {path}")
     if os.name == "posix" and mode & (stat.S_IRWXG | stat.S_IRWXO):
         raise InputError(f"--token-file {path} can be read by other users (mode {stat.S_IMODE(mode):o}); "
                          f"chmod 600 {path}")

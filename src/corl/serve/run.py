@@ -31,7 +31,7 @@ from corl.errors import CorlError, InputError, StateError
 from corl.problem import Outcome, Proposal
 from corl.store.records import TrialRecord
 
-__all__ = ["ServedRun", "Conflict", "Broken", "CODE_KEYS"]
+__all__ = ["ServedRun", "Conflict", "Broken", "TaskCodeError", "CODE_KEYS"]
 
 # Body keys that would name code or a run: the task is given on the server's command line only.
 CODE_KEYS = ("task", "task_spec", "spec", "module", "factory", "method", "seed", "store", "path")
@@ -41,6 +41,10 @@ _TELL_KEYS = ("trial", "success", "return", "info")
 
 class Conflict(StateError):
     """A request that does not fit the run's state (HTTP 409): a tell of a trial that is not pending."""
+
+
+class TaskCodeError(CorlError):
+    """The task's own code failed on a trial (its ``reference()``): not the request's fault (HTTP 500)."""
 
 
 class Broken(CorlError):
@@ -180,7 +184,13 @@ class ServedRun:
     def _reference(self, proposal: Proposal) -> dict:
         from corl.session import trajectory_of
 
-        t, q = trajectory_of(self.task, proposal.w, self.rate)
+        try:
+            t, q = trajectory_of(self.task, proposal.w, self.rate)
+        except (Exception, SystemExit) as exc:  # the task's reference(), or its contract (NaN, shapes)
+            raise TaskCodeError(
+                f"the task's reference(w, rate) failed on trial {proposal.index} ({type(exc).__name__}: {exc}); the "
+                "learner waits for this trial: fix the task and restart corl serve (nothing was handed out), or ask "
+                "with {\"raw\": true} and tell its outcome") from None
         names = getattr(self.task, "joint_names", None) or [f"q{j}" for j in range(q.shape[1])]
         return {"t": t.tolist(), "q": q.tolist(), "joint_names": list(names), "rate": self.rate}
 
@@ -219,8 +229,8 @@ class ServedRun:
             except Exception as exc:
                 if self.db.pending(self.session.run_id) is not None:
                     raise  # refused before anything was written (a failed demonstration, ...)
-                self._told(index, outcome)
                 self.broken = f"the learner raised {type(exc).__name__} after trial {index} was stored"
+                self._told(index, outcome)
                 raise Broken(f"{self.broken} ({exc}); the store keeps every told trial: restart corl serve on "
                              "the same store") from exc
             self._told(index, outcome)
@@ -305,7 +315,7 @@ class ServedRun:
                                                "J": _finite(getattr(best, "J", None))},
             "best_told": self._best_told,
             "done": bool(s.done), "stop_reason": None if reason is None else getattr(reason, "value", str(reason)),
-            "theta_dim": self.task.theta_bounds.dim, "version": self.version,
+            "theta_dim": self.task.theta_bounds.dim, "version": self.version, "broken": self.broken,
         }
 
 

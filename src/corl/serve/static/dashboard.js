@@ -19,9 +19,10 @@ function showStatus(s) {
   setText("step", s.step === null ? "\u2013" : `${s.step}, ${s.round}`);
   const state = $("state");
   state.classList.toggle("done", s.done);
-  state.classList.remove("offline");
   state.textContent = s.done ? `finished: ${s.stop_reason}` :
     (s.pending === null ? "waiting for the next ask" : `trial ${s.pending} is on the robot`);
+  state.classList.toggle("offline", Boolean(s.broken));
+  if (s.broken) state.textContent = `stopped: ${s.broken}; restart corl serve on the same store`;
   document.body.dataset.trials = s.trials;
   document.body.dataset.version = s.version;
   loadTrials();
