@@ -37,7 +37,8 @@ from corl.gp.classification import GPClassifier, LaplaceConvergenceWarning, labe
 from corl.gp.kernels import SquaredExponential
 from corl.gp.regression import GPRegression
 
-__all__ = ["HyperPrior", "RegressionPriors", "ClassifierPriors", "FitResult", "fit_regression", "fit_classifier"]
+__all__ = ["HyperPrior", "RegressionPriors", "ClassifierPriors", "FitResult", "fit_regression", "fit_classifier",
+           "standardisation"]
 
 
 @dataclass(frozen=True)
@@ -195,6 +196,17 @@ def _mean_and_spread(y: np.ndarray) -> tuple[float, float]:
     return top * float(np.mean(u)), top * float(np.std(u))
 
 
+def standardisation(y) -> tuple[float, float]:
+    """``(mean, scale)`` that standardise returns ``y`` (d,): ``z = (y - mean) / scale``.
+
+    ``scale`` is the standard deviation; with one point (or equal returns) there is no spread, and
+    the return's own magnitude (1 at 0) sets the scale, so that a later change of units changes nothing.
+    """
+    mean, spread = _mean_and_spread(np.asarray(y, dtype=float).reshape(-1))
+    tiny = 1e-12 * max(1.0, abs(mean))
+    return mean, (spread if spread > tiny else (abs(mean) if abs(mean) > 0 else 1.0))
+
+
 def _lengthscale_priors(default: HyperPrior, m: int, given) -> list[HyperPrior]:
     """One length-scale prior per input dimension: ``given`` (m,) or ``default`` for every one."""
     if given is None:
@@ -231,9 +243,7 @@ def fit_regression(X, y, bounds, priors: RegressionPriors = RegressionPriors(), 
     U = bounds.to_unit(X)
     # Standardise: z = (y - mean) / scale. One point (or equal returns) has no spread; then the
     # return's own magnitude sets the scale so that a later change of units changes nothing.
-    mean, spread = _mean_and_spread(y)
-    tiny = 1e-12 * max(1.0, abs(mean))
-    scale = spread if spread > tiny else (abs(mean) if abs(mean) > 0 else 1.0)
+    mean, scale = standardisation(y)
     if scale * priors.signal_std.high > _LARGEST_SCALE:  # sf = sf_unit * scale is squared in every kernel
         raise InputError(f"returns as large as {np.max(np.abs(y)):.3g} overflow a GP in their own units (its "
                          f"variance would pass 1e308): divide them by a constant first (corl's optimizers "
@@ -243,7 +253,7 @@ def fit_regression(X, y, bounds, priors: RegressionPriors = RegressionPriors(), 
     v, reason = _warm_start(warm, plist), ""
     if y.size < priors.min_points:
         reason, v = f"{y.size} successful point(s) < {priors.min_points}", _medians(plist)
-    elif spread <= tiny:
+    elif _mean_and_spread(y)[1] <= 1e-12 * max(1.0, abs(mean)):
         reason, v = "all returns equal", _medians(plist)
     else:
         gp = GPRegression(SquaredExponential(np.exp(v[:m]), np.exp(v[m])), float(np.exp(v[m + 1])))

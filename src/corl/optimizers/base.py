@@ -39,7 +39,9 @@ import numpy as np
 from corl.errors import InputError, StateError
 from corl.problem import Bounds, Outcome, check_theta
 
-__all__ = ["BlackBoxOptimizer", "StopReason", "as_outcome", "as_point", "as_rng", "score_of", "model_scale",
+__all__ = ["BlackBoxOptimizer", "StopReason", "as_outcome", "as_point", "as_rng", "score_of", "failure_score",
+           "model_returns",
+           "model_scale",
            "ANSWER_TOLERANCE", "MODEL_RANGE"]
 
 ANSWER_TOLERANCE = 5e-3  # a told point answers the proposal within this fraction of the box width
@@ -69,6 +71,44 @@ _EXPLAIN = {
     StopReason.MAX_ROUNDS: "Algorithm 1 ran all its rounds",
     StopReason.ERROR: "an exception ended the run",
 }
+
+
+def model_returns(values: np.ndarray, fitted: bool) -> np.ndarray:
+    """What a GP over returns (or scores) ``values`` (d,) is fitted on.
+
+    Fitted hyperparameters (``fitted``): the standardised values ``(v - mean) / scale``
+    (:func:`corl.gp.fitting.standardisation`), so that every number the method then compares (the
+    best return, PI's and UCB's variance floors) is in the same units whatever the return's: the
+    method proposes the same trials under ``a R + b``. Fixed hyperparameters (the paper's presets) are
+    in the return's units: the values as they are, divided by :func:`model_scale` past MODEL_RANGE.
+    """
+    v = np.asarray(values, dtype=float)
+    if fitted:
+        from corl.gp.fitting import standardisation
+
+        mean, scale = standardisation(v)
+        return (v - mean) / scale
+    return v / model_scale(v)
+
+
+def failure_score(returns: np.ndarray, failure_return: float | None) -> float:
+    """The score a safety-blind method models a failure with: ``failure_return``, or with None (fitted
+    GPs: units-free) one observed range below the worst success, ``min R - (max R - min R)``.
+
+    ``returns`` (d,) are the successful returns so far. While they hold fewer than two distinct
+    values, the gap is ``|min R|`` (1 at 0): with one value and the failures' one, the standardised
+    data a fitted GP sees is the same whatever the gap. So under ``a R + b`` (a > 0) the scores move
+    along: a method on fitted GPs proposes the same points in any unit of the return.
+    """
+    if failure_return is not None:
+        return float(failure_return)
+    r = np.asarray(returns, dtype=float)
+    r = r[np.isfinite(r)]
+    if r.size == 0:
+        return 0.0  # nothing succeeded: every score is this one, and standardised it is 0 anyway
+    low, high = float(np.min(r)), float(np.max(r))
+    gap = high - low if high > low else (abs(low) or 1.0)
+    return low - gap
 
 
 def score_of(outcome: Outcome, failure_return: float) -> float:

@@ -18,7 +18,7 @@ import numpy as np
 
 from corl.acquisition import PIBU, MaximizerConfig, PIBUConfig, PIBUVariant, maximize, upper_confidence_bound
 from corl.errors import InputError
-from corl.optimizers.base import BlackBoxOptimizer, StopReason, as_rng, model_scale
+from corl.optimizers.base import BlackBoxOptimizer, StopReason, as_rng, failure_score, model_returns
 from corl.optimizers.gpconfig import SYNTHETIC_CLASSIFIER, SYNTHETIC_REGRESSION, ClassifierConfig, ModelFitter, RegressionConfig
 from corl.problem import Bounds
 
@@ -126,7 +126,7 @@ class PIBUOptimizer(_BayesOpt):
         classifier = self.models.classifier(self.X_, self.success_)
         ok = self.success_ & np.isfinite(self.returns_)
         if np.any(ok):
-            r = self.returns_[ok] / model_scale(self.returns_[ok])  # past MODEL_RANGE: a unit the GP can square
+            r = model_returns(self.returns_[ok], self.config.regression.fit_hyperparameters)  # (base.model_returns)
             regression = self.models.regression(self.X_[ok], r)
             best = float(np.max(r))
         else:
@@ -138,11 +138,12 @@ class UCBOptimizer(_BayesOpt):
     """Bayesian optimization with UCB on the score (ignores safety).
 
     Failures are modelled with the score ``failure_return`` (the paper's single objective gives
-    failures a constant cost of 15).
+    failures a constant cost of 15), or with None one observed range below the worst success
+    (:func:`~corl.optimizers.base.failure_score`: units-free, what fitted GPs get by default).
     """
 
     def __init__(self, bounds: Bounds, config: BOConfig = BOConfig(), *, kappa: float = 2.0,
-                 failure_return: float = -15.0, max_evals: int = 100, seed=None, start=None) -> None:
+                 failure_return: float | None = -15.0, max_evals: int = 100, seed=None, start=None) -> None:
         if kappa < 0:
             raise InputError(f"kappa must be >= 0, got {kappa}")
         super().__init__(bounds, config, max_evals=max_evals, seed=seed, name="UCB", start=start)
@@ -152,9 +153,10 @@ class UCBOptimizer(_BayesOpt):
     def _acquisition(self):
         if len(self.X_) == 0:
             return None
-        y = np.where(self.success_, self.returns_, self.failure_return)
-        y = np.where(np.isfinite(y), y, self.failure_return)
-        y = y / model_scale(y)  # scores past MODEL_RANGE in a unit the GP can square (base.model_scale)
+        ok = self.success_ & np.isfinite(self.returns_)
+        failed = failure_score(self.returns_[ok], self.failure_return)
+        y = np.where(ok, self.returns_, failed)
+        y = model_returns(y, self.config.regression.fit_hyperparameters)  # units-free when fitted (base.model_returns)
         return _UCB(self.models.regression(self.X_, y), self.kappa)
 
 

@@ -37,7 +37,10 @@ __all__ = ["OptimizerSettings", "OPTIMIZERS", "register_optimizer", "make_optimi
 Builder = Callable[..., BlackBoxOptimizer]
 OPTIMIZERS: dict[str, Builder] = {}
 
-FITTED_BY_DEFAULT = ("CORL", "SEIB")  # without settings, these fit their GP hyperparameters to the data
+# Without settings, these fit their GP hyperparameters to the data and model returns units-free: the
+# same trials in any unit of the return (the paper's fixed presets are corl.settings' PAPER_*).
+FITTED_BY_DEFAULT = ("CORL", "SEIB", "PIBU", "PIBU(budget)", "PIBU(literal)", "UCB", "SAL")
+FAILURE_RETURN = -15.0  # the paper's constant cost of a failure, in the synthetic benchmark's units
 BOX_LENGTHSCALE = 0.1  # GP length scales of a user's box: a tenth of its width per dimension
 
 
@@ -48,7 +51,9 @@ class OptimizerSettings:
     Attributes
     ----------
     regression, classifier : the return GP g_R and the success GP g_S.
-    failure_return : the score of a failure for the methods that ignore safety (UCB, CMA, PoWER).
+    failure_return : the score of a failure for the methods that ignore safety (UCB, CMA, PoWER), or
+        None: UCB scores a failure one observed range below the worst success (units-free;
+        :func:`~corl.optimizers.base.failure_score`), CMA and PoWER, which fit no GP, -15.
     ucb_kappa : UCB's exploration weight.
     cma_sigma0 : CMA-ES's initial step, a fraction of the box width.
     stop_distance : PIBU's and SAL's stop: the next point is this close to a sampled one.
@@ -67,7 +72,7 @@ class OptimizerSettings:
 
     regression: RegressionConfig = SYNTHETIC_REGRESSION  # the paper's fixed values (Sec. VIII-A)
     classifier: ClassifierConfig = SYNTHETIC_CLASSIFIER
-    failure_return: float = -15.0
+    failure_return: float | None = FAILURE_RETURN
     ucb_kappa: float = 2.0
     cma_sigma0: float = 0.3
     stop_distance: float = 1e-3
@@ -77,7 +82,7 @@ class OptimizerSettings:
     seib: SEIBConfig = field(default_factory=SEIBConfig)
 
     def __post_init__(self) -> None:
-        if not np.isfinite(self.failure_return):
+        if self.failure_return is not None and not np.isfinite(self.failure_return):
             raise InputError(f"failure_return must be finite, got {self.failure_return}")
         if not (self.stop_distance >= 0 and self.step_distance >= 0):
             raise InputError("stop_distance and step_distance must be >= 0")
@@ -100,9 +105,9 @@ class OptimizerSettings:
                                       noise_std=SYNTHETIC_REGRESSION.noise_std)
         sal = SALConfig(regression=regression, critical_distance=0.08 * mean_width,
                         safety_lengthscale=BOX_LENGTHSCALE * mean_width, stop_distance=1e-3 * mean_width)
-        if fitted:
-            return cls(regression=FITTED_REGRESSION, classifier=FITTED_CLASSIFIER,
-                       distance_scale=tuple(float(v) for v in width), sal=sal)
+        if fitted:  # units-free: GPs on standardised returns, failures scored relative to the successes
+            return cls(regression=FITTED_REGRESSION, classifier=FITTED_CLASSIFIER, failure_return=None,
+                       distance_scale=tuple(float(v) for v in width), sal=replace(sal, regression=FITTED_REGRESSION))
         return cls(regression=regression, classifier=ClassifierConfig(lengthscale=ls,
                                                                       signal_std=SYNTHETIC_CLASSIFIER.signal_std),
                    distance_scale=tuple(float(v) for v in width), sal=sal)
@@ -157,7 +162,7 @@ def _sal(bounds, start, *, budget, rng, settings):
 def _cma(bounds, start, *, budget, rng, settings):
     from corl.optimizers.cmaes import CMAES, CMAESConfig
 
-    return CMAES(bounds, start, CMAESConfig(sigma0=settings.cma_sigma0), failure_return=settings.failure_return,
+    return CMAES(bounds, start, CMAESConfig(sigma0=settings.cma_sigma0), failure_return=_fixed_failure(settings),
                  max_evals=budget, seed=rng, start=start)
 
 
@@ -165,8 +170,13 @@ def _cma(bounds, start, *, budget, rng, settings):
 def _power(bounds, start, *, budget, rng, settings):
     from corl.optimizers.power import PoWER, PoWERConfig
 
-    return PoWER(bounds, start, PoWERConfig(), failure_return=settings.failure_return, max_evals=budget, seed=rng,
+    return PoWER(bounds, start, PoWERConfig(), failure_return=_fixed_failure(settings), max_evals=budget, seed=rng,
                  start=start)
+
+
+def _fixed_failure(settings) -> float:
+    """CMA's and PoWER's failure score: they fit no GP, so None (units-free for UCB) is the paper's -15."""
+    return FAILURE_RETURN if settings.failure_return is None else settings.failure_return
 
 
 @register_optimizer("CORL")  # the default: safe BO by SEIB on fitted GPs (corl.optimizers.safe)

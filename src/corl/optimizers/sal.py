@@ -27,9 +27,9 @@ import numpy as np
 from corl.acquisition import MaximizerConfig, maximize, upper_confidence_bound
 from corl.errors import InputError
 from corl.numerics import floor_variance, ndtr
-from corl.optimizers.base import BlackBoxOptimizer, StopReason, as_outcome, as_rng, model_scale
+from corl.optimizers.base import BlackBoxOptimizer, StopReason, as_outcome, as_rng, model_returns
 from corl.optimizers.bo import StopRule, _stop
-from corl.optimizers.gpconfig import SYNTHETIC_REGRESSION, RegressionConfig
+from corl.optimizers.gpconfig import SYNTHETIC_REGRESSION, ClassifierConfig, ModelFitter, RegressionConfig
 from corl.problem import Bounds
 
 __all__ = ["SALConfig", "SALOptimizer"]
@@ -66,6 +66,8 @@ class SALOptimizer(BlackBoxOptimizer):
         self.config = config
         self.rng = as_rng(seed)
         self.safety_ = np.empty(0)
+        # g_R's MAP fits (with warm starts) when its hyperparameters are fitted; g_S is SAL's own safety GP
+        self._fitter = ModelFitter(config.regression, ClassifierConfig(), bounds)
 
     def tell(self, x, outcome) -> None:
         """As :meth:`BlackBoxOptimizer.tell`; ``info["boundary_distance"]``, when given on a success,
@@ -110,7 +112,11 @@ class SALOptimizer(BlackBoxOptimizer):
         cfg = self.config
         ok = self.success_ & np.isfinite(self.returns_)  # not empty: needs_success (base class)
         r = self.returns_[ok]
-        reg = cfg.regression.build().fit(self.X_[ok], r / model_scale(r))  # returns past MODEL_RANGE scaled down
+        z = model_returns(r, cfg.regression.fit_hyperparameters)  # standardised when fitted (base.model_returns)
+        if cfg.regression.fit_hyperparameters:  # the same points in any unit of the return
+            reg = self._fitter.regression(self.X_[ok], z)
+        else:
+            reg = cfg.regression.build().fit(self.X_[ok], z)
         safety = self.safety_model()
         threshold = 1.0 - cfg.alpha
 
