@@ -42,12 +42,12 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
 from corl.optimizers.base import StopReason  # noqa: E402
-from corl.optimizers.bo import BOConfig, PIBUOptimizer  # noqa: E402
+from corl.optimizers.bo import BOConfig, PIBUOptimizer, StopRule  # noqa: E402
 from corl.optimizers.gpconfig import FITTED_CLASSIFIER, FITTED_REGRESSION, ClassifierConfig, RegressionConfig  # noqa: E402
 from corl.optimizers.safe import SafeBOOptimizer  # noqa: E402
 from corl.problem import Bounds, Outcome  # noqa: E402
 
-CORL_METHODS = ("CORL", "PIBU", "PIBU(l=w/10)")  # corl's own, run at --starts
+CORL_METHODS = ("CORL", "PIBU", "PIBU(l=w/10)", "CORL(budget)", "PIBU(budget)")  # corl's own, run at --starts
 PEERS = ("PIBU", "PIBU(l=w/10)", "BoTorch", "SafeOpt")  # what CORL is compared with
 
 
@@ -357,6 +357,15 @@ def run_corl(p, start, budget, seed):
     return _drive(SafeBOOptimizer(p.bounds, max_evals=budget, seed=seed), p, start, budget)
 
 
+def run_corl_budget(p, start, budget, seed):  # CORL(budget): spends every trial, never below the band
+    return _drive(SafeBOOptimizer(p.bounds, max_evals=budget, seed=seed, spend_budget=True), p, start, budget)
+
+
+def run_pibu_budget(p, start, budget, seed):  # PIBU(budget): fitted GPs, no stopping rule
+    cfg = BOConfig(FITTED_REGRESSION, FITTED_CLASSIFIER, stop_rule=StopRule.BUDGET, distance_scale=tuple(p.bounds.width))
+    return _drive(PIBUOptimizer(p.bounds, cfg, max_evals=budget, seed=seed), p, start, budget)
+
+
 def run_pibu(p, start, budget, seed):  # PIBU as a user gets it now: GPs fitted from the data
     cfg = BOConfig(FITTED_REGRESSION, FITTED_CLASSIFIER, distance_scale=tuple(p.bounds.width))
     return _drive(PIBUOptimizer(p.bounds, cfg, max_evals=budget, seed=seed), p, start, budget)
@@ -576,7 +585,8 @@ def main(argv=None) -> None:
         (print_verdict if args.verdict else print_table)(args.table, args.budget, markdown=args.markdown)
         return
 
-    runners = {"CORL": run_corl, "PIBU": run_pibu, "PIBU(l=w/10)": run_pibu_tenth}
+    runners = {"CORL": run_corl, "PIBU": run_pibu, "PIBU(l=w/10)": run_pibu_tenth, "CORL(budget)": run_corl_budget,
+               "PIBU(budget)": run_pibu_budget}
     wanted = [m.strip() for m in args.methods.split(",") if m.strip()]
     if "BoTorch" in wanted:
         try:

@@ -28,7 +28,7 @@ from corl.tasks.synthetic import SyntheticTask
 
 BOX = Bounds(np.zeros(2), np.ones(2))
 START = np.array([0.3, 0.3])
-SAFE = ("PIBU", "PIBU(literal)", "PIBU(budget)", "SAL", "CORL", "SEIB")  # grow the safe set from a success
+SAFE = ("PIBU", "PIBU(literal)", "PIBU(budget)", "SAL", "CORL", "CORL(budget)", "SEIB")  # grow the safe set from a success
 OPTIMIZERS = tuple(corl.OPTIMIZERS)
 
 

@@ -72,3 +72,28 @@ def test_the_paper_preset_keeps_its_constant_failure_score():
     assert corl.OptimizerSettings.for_box(box).failure_return == -15.0
     assert corl.OptimizerSettings.for_box(box, fitted=True).failure_return is None
     assert corl.OptimizerSettings().regression.fit_hyperparameters is False
+
+
+def test_corl_budget_spends_every_trial_in_any_unit_and_never_below_the_band():
+    """Issue 25, item 1: CORL(budget) runs its whole budget (stop_reason BUDGET) where CORL stops early."""
+    f, box, start = PROBLEMS["peaks-1d"]
+    plain = corl.optimize(f, box, start=start, method="CORL", budget=40, seed=0)
+    assert plain.trials < 40 and plain.stop_reason is not corl.StopReason.BUDGET
+    runs = []
+    for a, b in UNITS[:3]:
+        def trial(theta, a=a, b=b):
+            ok, r = f(theta)
+            return ok, None if r is None else a * r + b
+
+        opt = corl.make_optimizer("CORL(budget)", box, start, budget=40, seed=0)
+        opt.tell(start, trial(start))
+        while not opt.done:
+            x = opt.ask()
+            acquisition = opt.last_acquisition
+            p = acquisition.classifier.predict_proba(np.atleast_2d(x))[0]
+            assert p >= opt.seib.p_band - 1e-9  # never below the band
+            opt.tell(x, trial(x))
+        runs.append((opt.n_evals, int(np.sum(~opt.success_)), np.asarray(opt.best[0])))
+    assert runs[0][0] == 40 and opt.stop_reason is corl.StopReason.BUDGET
+    assert all(r[:2] == runs[0][:2] and np.allclose(r[2], runs[0][2], atol=1e-9) for r in runs)
+    assert runs[0][1] <= plain.failures + 5

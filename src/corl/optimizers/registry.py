@@ -39,7 +39,7 @@ OPTIMIZERS: dict[str, Builder] = {}
 
 # Without settings, these fit their GP hyperparameters to the data and model returns units-free: the
 # same trials in any unit of the return (the paper's fixed presets are corl.settings' PAPER_*).
-FITTED_BY_DEFAULT = ("CORL", "SEIB", "PIBU", "PIBU(budget)", "PIBU(literal)", "UCB", "SAL")
+FITTED_BY_DEFAULT = ("CORL", "SEIB", "CORL(budget)", "PIBU", "PIBU(budget)", "PIBU(literal)", "UCB", "SAL")
 FAILURE_RETURN = -15.0  # the paper's constant cost of a failure, in the synthetic benchmark's units
 BOX_LENGTHSCALE = 0.1  # GP length scales of a user's box: a tenth of its width per dimension
 
@@ -186,6 +186,14 @@ def _seib(bounds, start, *, budget, rng, settings):
 
     config = replace(SAFE_BO_CONFIG, regression=settings.regression, classifier=settings.classifier)
     return SafeBOOptimizer(bounds, config, settings.seib, max_evals=budget, seed=rng, start=start)
+
+
+@register_optimizer("CORL(budget)")  # CORL that spends its whole budget (SafeBOOptimizer._spend), never below the band
+def _seib_budget(bounds, start, *, budget, rng, settings):
+    from corl.optimizers.safe import SAFE_BO_CONFIG, SafeBOOptimizer
+
+    config = replace(SAFE_BO_CONFIG, regression=settings.regression, classifier=settings.classifier)
+    return SafeBOOptimizer(bounds, config, settings.seib, max_evals=budget, seed=rng, start=start, spend_budget=True)
 
 
 def as_bounds(bounds) -> Bounds:
