@@ -75,6 +75,18 @@ def _ball(c, r):
     return lambda X: np.linalg.norm(X - c, axis=1) < r
 
 
+def _strip(a, b, half):
+    """Points within ``half`` of the segment a-b (2-D)."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    d = b - a
+
+    def inside(X):
+        t = np.clip((X - a) @ d / (d @ d), 0.0, 1.0)
+        return np.linalg.norm(X - (a + t[:, None] * d), axis=1) < half
+
+    return inside
+
+
 def _sq(c, w=1.0):
     c = np.asarray(c, float)
     return lambda X: -w * np.sum((X - c) ** 2, axis=1)
@@ -283,6 +295,30 @@ PROBLEMS = [
     Problem("shell-4d", (-1.0,) * 4, (1.0,) * 4, (-0.3, 0.0, 0.0, 0.0), _ball((0.0,) * 4, 0.85),
             _sq((0.9, 0.45, 0.0, 0.0)), "4-D ball, the optimum on its surface toward a point outside",
             role="seen"),
+    # batch 11 (issue 25): the new kinds, written after CORL(budget) and the units-free change and before any
+    # change for them; run once, as today's baseline (docs/safe_bo_suite.md, "The new kinds")
+    Problem("needle-2d", (0.0, 0.0), (10.0, 10.0), (2.0, 2.0), _strip((2.0, 2.0), (7.5, 6.0), 0.07),
+            lambda X: 0.3 * X[:, 0] + 0.2 * X[:, 1], "2-D thin diagonal strip (0.96 % of the box), optimum at its far end",
+            role="held-out"),
+    Problem("arc-thin-2d", (-2.0, -2.0), (2.0, 2.0), (1.2, 0.0),
+            lambda X: (np.abs(np.linalg.norm(X, axis=1) - 1.2) < 0.016) & (X[:, 1] > -0.4),
+            lambda X: X[:, 1] - 0.2 * X[:, 0], "2-D thin circular arc (0.9 % of the box), optimum at its top",
+            role="held-out"),
+    Problem("thin-cross-2d", (-1.0, -1.0), (1.0, 1.0), (-0.7, 0.0),
+            lambda X: (np.abs(X[:, 1]) < 0.004) | ((np.abs(X[:, 0] - 0.3) < 0.004) & (X[:, 1] > -0.2)),
+            lambda X: X[:, 0] + 1.5 * X[:, 1], "2-D two thin bars crossing (0.5 % of the box), optimum up the second",
+            role="held-out"),
+    Problem("six-walls-2d", (-3.0, -3.0), (3.0, 3.0), (-1.5, -1.5),
+            lambda X: (X[:, 0] + X[:, 1] < 2.0) & (X[:, 0] - X[:, 1] < 1.5) & (X[:, 1] - X[:, 0] < 2.0)
+            & (np.linalg.norm(X, axis=1) < 2.6) & ~_ball((0.5, 0.0), 0.6)(X) & (X[:, 0] > -2.5),
+            _sq((0.8, 1.0)), "2-D safe set cut by six constraints, optimum on a corner of two", role="held-out"),
+    Problem("walls-4d", (-1.0,) * 4, (1.0,) * 4, (-0.2, -0.2, 0.0, 0.0),
+            lambda X: _ball((0.0,) * 4, 0.9)(X) & (X[:, 0] + X[:, 1] < 0.8) & (X[:, 2] - X[:, 3] < 0.5)
+            & (X[:, 0] - X[:, 2] > -0.9) & (np.abs(X[:, 3]) < 0.6),
+            _sq((0.5, 0.4, -0.3, 0.2)), "4-D ball cut by four planes, optimum where two of them meet", role="held-out"),
+    Problem("kilonewton-2d", (-2.0, -2.0), (2.0, 2.0), (-0.8, -0.5), _ball((0.0, 0.0), 1.4),
+            lambda X: -2e5 + 1e4 * _sq((0.7, 0.6))(X), "2-D disc, returns near -2e5 in steps of 1e4 (units)",
+            role="held-out"),
 ]
 
 _GRID = {1: 20001, 2: 401, 3: 71, 4: 29}
