@@ -153,7 +153,7 @@ def _draw_return_map(data: ReturnMapData, path, *, regression, classifier, label
             ax.scatter([best_theta[0]], [best_return], c="magenta", marker="*", s=200, zorder=4, label="best")
         ax.set_xlabel(labels[0])
         ax.set_ylabel("R")
-    elif bounds.dim == 2:
+    else:  # 2-D (more was refused above, before the fits)
         n = 120
         a = np.linspace(bounds.lower[0], bounds.upper[0], n)
         b = np.linspace(bounds.lower[1], bounds.upper[1], n)
@@ -172,8 +172,6 @@ def _draw_return_map(data: ReturnMapData, path, *, regression, classifier, label
         ax.plot([], [], color="red", lw=2, label="classifier boundary")
         ax.set_xlabel(labels[0])
         ax.set_ylabel(labels[1])
-    else:
-        raise ValueError(f"a return map needs 1-D or 2-D theta, this task has m = {bounds.dim}")
     ax.set_title(title)
     ax.legend(loc="best", fontsize=8)
     return _save(plt, fig, path)

@@ -20,7 +20,6 @@ goes on exactly where it stopped: nothing lost, nothing run twice.
 from __future__ import annotations
 
 import math
-import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -98,7 +97,6 @@ class ServedRun:
         self.rate = check_rate(rate)
         self.store_path = Path(store_path)
         self.task_spec = task_spec
-        self.lock = threading.Lock()
         self.version = 0  # grows with every change a client can see
         self.broken: str | None = None
         self._asked: Proposal | None = None  # asked of the learner, not handed out yet
@@ -125,12 +123,11 @@ class ServedRun:
             self.info = self.db.run(self.session.run_id)
             pending = self.db.pending(self.session.run_id)
             self.pending: Proposal | None = None if pending is None else pending.proposal
-            J = dict(getattr(self.session.learner, "J_history", ()) or ())
-            self.records = self.db.trials(self.session.run_id)
-            self._rows = [_row(r.proposal, r.outcome, _finite(J.get(r.proposal.index))) for r in self.records]
-            told = [r for r in self._rows if r["success"]]
-            top = max(told, key=lambda r: r["return"], default=None)  # the first of equal returns
-            self._best_told = None if top is None else {k: top[k] for k in ("trial", "return", "theta")}
+            self.records = self.db.trials(self.session.run_id)  # every trial, oldest first; outcome None while pending
+            self._J = {i: _finite(J) for i, J in getattr(self.session.learner, "J_history", ()) or ()}
+            self._best_told = None
+            for r in self.records:
+                self._note_best(r)
         except BaseException:
             self.db.close()
             raise
@@ -147,31 +144,29 @@ class ServedRun:
         raw = _check_keys(body, _ASK_KEYS, "ask").get("raw", False)
         if not isinstance(raw, bool):
             raise InputError(f"'raw' must be true or false, got {raw!r}")
-        with self.lock:
-            self._usable()
-            t0 = time.perf_counter()
-            if not raw and getattr(self.task, "reference", None) is None:  # corl.problem.HasReference
-                raise InputError(f"task '{self.task.name}' has no reference(w, rate), so corl cannot turn w into a "
-                                 "joint trajectory: ask with {\"raw\": true} (Client(url, raw=True)) for the raw "
-                                 "parameters w, which are NOT a joint trajectory (never send them to a robot), or "
-                                 "add reference() to the task")
-            if self.pending is None and self.session.done:
-                raise Conflict(f"run {self.session.run_id} has finished ({_reason(self.session)}): there is no next "
-                               "trial; GET /status shows the result, and another --store starts a new run")
-            proposal = self.pending
-            if proposal is None:
-                proposal = self._asked = self._asked or self.session.learner.ask()
-            reference = None if raw else self._reference(proposal)
-            t1 = time.perf_counter()
-            commit = 0.0
-            if self.pending is None:
-                self.session.hand_out(proposal)  # committed before it is answered
-                commit = self.session.commit_seconds
-                self.pending, self._asked = proposal, None
-                self.records.append(TrialRecord(proposal, None, "", None))
-                self._rows.append(_row(proposal, None, None))
-                self._changed()
-            t2 = time.perf_counter()
+        self._usable()
+        t0 = time.perf_counter()
+        if not raw and getattr(self.task, "reference", None) is None:  # corl.problem.HasReference
+            raise InputError(f"task '{self.task.name}' has no reference(w, rate), so corl cannot turn w into a "
+                             "joint trajectory: ask with {\"raw\": true} (Client(url, raw=True)) for the raw "
+                             "parameters w, which are NOT a joint trajectory (never send them to a robot), or "
+                             "add reference() to the task")
+        if self.pending is None and self.session.done:
+            raise Conflict(f"run {self.session.run_id} has finished ({_reason(self.session)}): there is no next "
+                           "trial; GET /status shows the result, and another --store starts a new run")
+        proposal = self.pending
+        if proposal is None:
+            proposal = self._asked = self._asked or self.session.learner.ask()
+        reference = None if raw else self._reference(proposal)
+        t1 = time.perf_counter()
+        commit = 0.0
+        if self.pending is None:
+            self.session.hand_out(proposal)  # committed before it is answered
+            commit = self.session.commit_seconds
+            self.pending, self._asked = proposal, None
+            self.records.append(TrialRecord(proposal, None, "", None))
+            self._changed()
+        t2 = time.perf_counter()
         answer = {"trial": proposal.index, "run": self.session.run_id, "step": proposal.step,
                   "round": proposal.round, "theta": proposal.theta.tolist()}
         if raw:
@@ -215,26 +210,25 @@ class ServedRun:
         if not success and value is not None:
             raise InputError("a failed trial is told without a return: send \"return\": null (or success true)")
         outcome = Outcome(success, value, info)  # a NaN, a missing return on success: InputError
-        with self.lock:
-            self._usable()
-            t0 = time.perf_counter()
-            if index < len(self._rows) and self._rows[index]["success"] is not None:
-                return self._repeated(index, outcome), Timing()
-            if self.pending is None or index != self.pending.index:
-                now = ("no trial is pending: POST /ask first" if self.pending is None
-                       else f"the pending trial is {self.pending.index}")
-                raise Conflict(f"trial {index} is not pending, so it cannot be told: {now}")
-            try:
-                self.session.tell(outcome)  # committed, then the learner is told
-            except Exception as exc:
-                if self.db.pending(self.session.run_id) is not None:
-                    raise  # refused before anything was written (a failed demonstration, ...)
-                self.broken = f"the learner raised {type(exc).__name__} after trial {index} was stored"
-                self._told(index, outcome)
-                raise Broken(f"{self.broken} ({exc}); the store keeps every told trial: restart corl serve on "
-                             "the same store") from exc
+        self._usable()
+        t0 = time.perf_counter()
+        if index < len(self.records) and self.records[index].outcome is not None:
+            return self._repeated(index, outcome), Timing()
+        if self.pending is None or index != self.pending.index:
+            now = ("no trial is pending: POST /ask first" if self.pending is None
+                   else f"the pending trial is {self.pending.index}")
+            raise Conflict(f"trial {index} is not pending, so it cannot be told: {now}")
+        try:
+            self.session.tell(outcome)  # committed, then the learner is told
+        except Exception as exc:
+            if self.db.pending(self.session.run_id) is not None:
+                raise  # refused before anything was written (a failed demonstration, ...)
+            self.broken = f"the learner raised {type(exc).__name__} after trial {index} was stored"
             self._told(index, outcome)
-            t1 = time.perf_counter()
+            raise Broken(f"{self.broken} ({exc}); the store keeps every told trial: restart corl serve on "
+                         "the same store") from exc
+        self._told(index, outcome)
+        t1 = time.perf_counter()
         status = self.status
         commit = self.session.commit_seconds  # the store; the rest is the learner's tell (its next step)
         return {"trial": index, "success": outcome.success, "return": outcome.return_, "done": status["done"],
@@ -243,16 +237,20 @@ class ServedRun:
 
     def _told(self, index: int, outcome: Outcome) -> None:
         history = getattr(self.session.learner, "J_history", None) or [(None, None)]
-        J = history[-1][1] if history[-1][0] == index else None
-        self._rows[index] = _row(self.pending, outcome, _finite(J))
-        if outcome.success and (self._best_told is None or outcome.return_ > self._best_told["return"]):
-            self._best_told = {"trial": index, "return": outcome.return_, "theta": self._rows[index]["theta"]}
+        if history[-1][0] == index:
+            self._J[index] = _finite(history[-1][1])
         self.records[index] = TrialRecord(self.pending, outcome, "", "")
+        self._note_best(self.records[index])
         self.pending = None
         self._changed()
 
+    def _note_best(self, record: TrialRecord) -> None:
+        """Keep ``_best_told``: the successful trial with the highest return (the first of equal ones)."""
+        o = record.outcome
+        if o is not None and o.success and (self._best_told is None or o.return_ > self._best_told["return"]):
+            self._best_told = {"trial": record.index, "return": o.return_, "theta": record.proposal.theta.tolist()}
+
     def _repeated(self, index: int, outcome: Outcome) -> dict:
-        row = self._rows[index]
         stored = self.records[index].outcome
         same = (stored.success == outcome.success and stored.return_ == outcome.return_
                 and dict(stored.info) == dict(outcome.info))
@@ -261,7 +259,7 @@ class ServedRun:
             raise Conflict(f"trial {index} was already told ({told}, return {stored.return_}); a trial is told once, "
                            "and this tell says otherwise: nothing was changed")
         status = self.status
-        return {"trial": index, "success": row["success"], "return": row["return"], "done": status["done"],
+        return {"trial": index, "success": stored.success, "return": stored.return_, "done": status["done"],
                 "stop_reason": status["stop_reason"], "trials": status["trials"], "failures": status["failures"],
                 "repeated": True}
 
@@ -271,7 +269,7 @@ class ServedRun:
         copies the dashboard draws from (run it in :attr:`executor`)."""
         from corl.experiments.figures import return_map_data
 
-        J = np.array([np.nan if r["J"] is None else r["J"] for r in self._rows], dtype=float)
+        J = np.array([np.nan if self._J.get(r.index) is None else self._J[r.index] for r in self.records], dtype=float)
         try:
             data = return_map_data(self.session.learner)
         except ValueError:
@@ -287,8 +285,7 @@ class ServedRun:
 
     def trials(self, since: int = 0) -> list[dict]:
         """The trials from index ``since`` on, oldest first (a pending one has ``success`` null)."""
-        rows = self._rows
-        return rows[max(0, since):]
+        return [_row(r.proposal, r.outcome, self._J.get(r.index)) for r in self.records[max(0, since):]]
 
     def _usable(self) -> None:
         if self.broken:
@@ -301,16 +298,16 @@ class ServedRun:
     def _status(self) -> dict:
         """What GET /status answers: counts, the pending trial, the best so far, done and why."""
         s = self.session
-        told = [r for r in self._rows if r["success"] is not None]
+        told = [r.outcome for r in self.records if r.outcome is not None]
         best = s.best
         reason = getattr(s.learner, "stop_reason", None)
         return {
             "run": s.run_id, "task": self.task.name, "task_spec": self.task_spec, "method": self.info.method,
             "seed": self.info.seed, "store": str(self.store_path), "trials": len(told),
-            "failures": sum(not r["success"] for r in told),
+            "failures": sum(not o.success for o in told),
             "pending": None if self.pending is None else self.pending.index,
-            "step": self._rows[-1]["step"] if self._rows else None,
-            "round": self._rows[-1]["round"] if self._rows else None,
+            "step": self.records[-1].proposal.step if self.records else None,
+            "round": self.records[-1].proposal.round if self.records else None,
             "best": None if best is None else {"theta": np.asarray(best.theta).tolist(), "return": float(best.return_),
                                                "J": _finite(getattr(best, "J", None))},
             "best_told": self._best_told,
