@@ -15,7 +15,7 @@ def suite():
 
 
 def test_every_problem_has_safe_starts_in_the_box_and_an_optimum_above_them(suite):
-    assert len(suite.PROBLEMS) >= 8 and {p.bounds.dim for p in suite.PROBLEMS} == {1, 2, 3, 4}
+    assert len(suite.PROBLEMS) >= 8 and {p.bounds.dim for p in suite.PROBLEMS} == {1, 2, 3, 4, 5, 6, 7}
     assert {p.role for p in suite.PROBLEMS} == {"training", "seen", "held-out"}
     for p in suite.PROBLEMS:
         truth = suite.truth_of(p)
@@ -23,8 +23,30 @@ def test_every_problem_has_safe_starts_in_the_box_and_an_optimum_above_them(suit
         assert len(starts) == 20 and np.all(p.safe(starts)), p.name
         assert all(p.bounds.contains(x) for x in starts), p.name
         assert truth.best - truth.tol > p.ret(starts[:1])[0], f"{p.name}: the start is already 'found'"
-        spacing = np.sqrt(p.bounds.dim) / (suite._GRID[p.bounds.dim] - 1)  # of the grid the truth is taken on
-        assert truth.tol > 0 and np.all(truth.beyond(p.bounds.to_unit(starts)) <= spacing), p.name
+        assert truth.tol > 0, p.name
+        if p.known is None:  # the truth is taken on a grid
+            spacing = np.sqrt(p.bounds.dim) / (suite._GRID[p.bounds.dim] - 1)
+            assert np.all(truth.beyond(p.bounds.to_unit(starts)) <= spacing), p.name
+
+
+@pytest.mark.parametrize("name", ["thin-ring-2d", "zigzag-2d", "slit-3d", "ball-5d", "cap-6d", "edge-7d"])
+def test_a_truth_worked_out_by_hand_bounds_every_sampled_safe_return_and_is_reached_near_its_argmax(suite, name):
+    p = next(q for q in suite.PROBLEMS if q.name == name)
+    best, worst = p.known
+    rng = np.random.default_rng(1)
+    X = p.bounds.from_unit(rng.random((400_000, p.bounds.dim)))
+    R = p.ret(X[p.safe(X)])
+    assert R.size > 100
+    span = best - worst
+    assert R.max() <= best + 1e-9 * span and R.min() >= worst - 1e-9 * span  # nothing safe beyond the hand values
+    x = X[p.safe(X)][np.argmax(R)]  # climb from the best sample, staying safe: the hand optimum is reached
+    for step in (1e-2, 1e-3, 1e-4):
+        for _ in range(20):
+            Y = x + step * rng.standard_normal((20_000, p.bounds.dim)) * p.bounds.width
+            ok = p.safe(Y) & np.all((Y >= p.bounds.lower) & (Y <= p.bounds.upper), axis=1)
+            if ok.any() and p.ret(Y[ok]).max() > p.ret(x[None])[0]:
+                x = Y[ok][np.argmax(p.ret(Y[ok]))]
+    assert p.ret(x[None])[0] >= best - 0.01 * span
 
 
 def test_a_run_split_by_start_range_merges_into_the_unsplit_table(suite, tmp_path, capsys):
