@@ -47,7 +47,7 @@ def _settings_cases() -> list[tuple[str, str, Callable]]:
         ("MethodSettings(cma_sigma0=-0.1)", REFUSE, lambda: MethodSettings(cma_sigma0=-0.1)),
         ("MethodSettings(theta_scale=(1, -2))", REFUSE, lambda: MethodSettings(theta_scale=(1.0, -2.0))),
         ("MethodSettings(corl={...})", REFUSE, lambda: MethodSettings(corl={"eps_max": 0.1})),
-        ("SEIBConfig(stop_value=inf)", REFUSE, lambda: SEIBConfig(stop_value=math.inf)),
+        ("SEIBConfig(far_beta=inf)", REFUSE, lambda: SEIBConfig(far_beta=math.inf)),
         ("SolverConfig(tol_steps=1)", REFUSE, lambda: SolverConfig(tol_steps=1.0)),
         ("Bounds([], [])", REFUSE, lambda: Bounds(np.array([]), np.array([]))),
         ("MethodSettings(corl=CORLConfig(eps_max=.1))", WORK, lambda: MethodSettings(corl=CORLConfig(eps_max=0.1))),

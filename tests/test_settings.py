@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from corl.acquisition.safe_ei import SEIBTuning
 from corl.errors import InputError
 from corl.learner import CORLConfig
 from corl.methods import USER_SETTINGS, make_method, settings_for
@@ -80,7 +81,7 @@ def test_defaults_are_fitted_and_the_paper_values_are_named_presets():
     (lambda: MethodSettings(theta_scale=(1.0, -2.0)), "theta_scale"),
     (lambda: MethodSettings(direct_budget=2.5), "direct_budget"),
     (lambda: MethodSettings(corl={"eps_max": 0.1}), "MethodSettings.corl"),
-    (lambda: SEIBConfig(stop_value=math.inf), "stop_value"),
+    (lambda: SEIBTuning(stop_value=math.inf), "stop_value"),
     (lambda: SEIBConfig(stop_valu=1.0), "no setting 'stop_valu'"),
     (lambda: SolverConfig(tol_steps=1.0), "no setting 'tol_steps'"),
     (lambda: Bounds(np.array([]), np.array([])), "empty"),

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from corl.acquisition.safe_ei import SEIB, SEIBConfig, expected_improvement
+from corl.acquisition.safe_ei import SEIB, SEIBConfig, SEIBTuning, expected_improvement
 from corl.errors import InputError
 from corl.gp import GPClassifier, GPRegression, SquaredExponential
 
@@ -41,7 +41,7 @@ def test_value_is_zero_wherever_success_is_unlikely():
 
 def test_boundary_is_explored_only_where_the_return_may_improve():
     reg, clf = _models()
-    acq = SEIB(reg, clf, best_return=3.0, scale=1.1, config=SEIBConfig(boundary_weight=1.0))
+    acq = SEIB(reg, clf, best_return=3.0, scale=1.1, config=SEIBConfig(_tuning=SEIBTuning(boundary_weight=1.0)))
     grid = np.linspace(0, 1, 2001)[:, None]
     parts = acq.parts(grid)
     band = parts["band"]
@@ -64,8 +64,8 @@ def test_does_not_stall_beside_the_best_point():
 def test_band_rel_raises_the_band_point_gate_s_margin_and_nothing_else():
     reg, clf = _models()
     grid = np.linspace(0, 1, 2001)[:, None]
-    base = SEIB(reg, clf, best_return=3.0, scale=1.1, config=SEIBConfig(boundary_weight=1.0))
-    same = SEIB(reg, clf, best_return=3.0, scale=1.1, config=SEIBConfig(boundary_weight=1.0, band_rel=0.005))
+    base = SEIB(reg, clf, best_return=3.0, scale=1.1, config=SEIBConfig(_tuning=SEIBTuning(boundary_weight=1.0)))
+    same = SEIB(reg, clf, best_return=3.0, scale=1.1, config=SEIBConfig(band_rel=0.005, _tuning=SEIBTuning(boundary_weight=1.0)))
     np.testing.assert_array_equal(same(grid), base(grid))  # below xi (0.01): xi is the margin, as before
     parts = base.parts(grid)
     band = parts["band"] & parts["ucb_gate"]
@@ -74,7 +74,7 @@ def test_band_rel_raises_the_band_point_gate_s_margin_and_nothing_else():
     u = np.sort(ucb)  # a margin that shuts about half of the open band points, midway between two
     rel = float(0.5 * (u[len(u) // 2 - 1] + u[len(u) // 2]) - 3.0) / 1.1  # of them (no point within rounding of it)
     assert rel > 0.01
-    strict = SEIB(reg, clf, best_return=3.0, scale=1.1, config=SEIBConfig(boundary_weight=1.0, band_rel=rel)).parts(grid)
+    strict = SEIB(reg, clf, best_return=3.0, scale=1.1, config=SEIBConfig(band_rel=rel, _tuning=SEIBTuning(boundary_weight=1.0))).parts(grid)
     kept = strict["ucb_gate"][band]
     assert 0 < kept.sum() < band.sum()
     np.testing.assert_array_equal(kept, ucb > 3.0 + rel * 1.1)  # the gate is UCB_R > R^+ + band_rel * scale
@@ -99,7 +99,7 @@ def test_without_a_return_model_only_the_boundary_acts():
 
 def test_bad_settings_are_refused():
     with pytest.raises(InputError, match="p_band"):
-        SEIBConfig(p_band=0.8, p_inner=0.7)
+        SEIBConfig(p_band=0.8)
     reg, clf = _models()
     with pytest.raises(InputError, match="scale"):
         SEIB(reg, clf, 1.0, scale=0.0)
@@ -139,7 +139,7 @@ def test_looking_beyond_needs_a_real_gain_and_stays_in_the_box():
     grid = np.linspace(0, 1, 2001)[:, None]
     band = SEIB(reg, clf, 1.0, 0.16).parts(grid)["band"] & (grid[:, 0] < 0.6)
     # R^+ above the prior UCB (0 + 2 * 1) by the margin: nothing beyond can beat it
-    high = SEIB(reg, clf, 1.0, 0.16, SEIBConfig(beyond_rel=7.0), beyond=True).parts(grid)
+    high = SEIB(reg, clf, 1.0, 0.16, SEIBConfig(_tuning=SEIBTuning(beyond_rel=7.0)), beyond=True).parts(grid)
     assert not np.any(high["ucb_gate"][band])
     # a box ending at the band leaves only the band point itself, where the model is sure R is lower
     lo = float(grid[band, 0].min())
@@ -156,9 +156,9 @@ def test_outward_normal_points_away_from_the_safe_set():
 
 def test_beyond_settings_are_checked():
     with pytest.raises(InputError, match="beyond_rel"):
-        SEIBConfig(beyond_rel=-1.0)
+        SEIBTuning(beyond_rel=-1.0)
     with pytest.raises(InputError, match="reach"):
-        SEIBConfig(reach=())
+        SEIBTuning(reach=())
 
 
 def _valley_models(fail_left: bool = False):
@@ -191,7 +191,7 @@ def test_looking_far_crosses_a_valley_the_look_beyond_cannot():
     assert np.any(far["ucb_gate"][left]) and np.max(far["value"][left]) > 0.01  # four out: the prior
     assert not np.any(far["ucb_gate"][right])  # the failure at 0.85 closes the right side
     assert np.all(far["value"][~band & ~far["inner"]] == 0.0)  # still only band points proposed
-    none = SEIB(reg, clf, 1.0, scale, SEIBConfig(far_reach=(0.0, 0.5, 1.0)), beyond=True, far=True, **kw)
+    none = SEIB(reg, clf, 1.0, scale, SEIBConfig(_tuning=SEIBTuning(far_reach=(0.0, 0.5, 1.0))), beyond=True, far=True, **kw)
     assert not np.any(none.parts(grid)["ucb_gate"][band])  # the distance, not the margin, opens it
 
 
@@ -201,7 +201,7 @@ def test_looking_far_starts_only_from_band_points_clear_of_failures():
     far = SEIB(reg, clf, 1.0, scale, beyond=True, far=True, box=([0.0], [1.0])).parts(grid)
     assert np.any(far["band"] & (grid[:, 0] < 0.5))
     assert not np.any(far["ucb_gate"])  # the left band lies within 2 g_S length scales of 0.22
-    wide = SEIB(reg, clf, 1.0, scale, SEIBConfig(far_open=0.5), beyond=True, far=True, box=([0.0], [1.0]))
+    wide = SEIB(reg, clf, 1.0, scale, SEIBConfig(_tuning=SEIBTuning(far_open=0.5)), beyond=True, far=True, box=([0.0], [1.0]))
     opened = grid[wide.parts(grid)["ucb_gate"], 0]
     assert opened.size and np.all(opened > 0.5)  # a smaller far_open lets the right side nearer 0.85 open,
     # while the left ray still ends at the failure just past the band
@@ -217,7 +217,7 @@ def test_a_failure_behind_the_band_point_does_not_block_its_far_ray():
     reg = GPRegression(SquaredExponential(0.05, 1.0), 0.01, prior_mean=0.0).fit(X[s], r)
     grid = np.linspace(0, 1, 2001)[:, None]
     right = grid[:, 0] > 0.56
-    for cfg, opens in [(SEIBConfig(), True), (SEIBConfig(far_behind=1.0), False)]:
+    for cfg, opens in [(SEIBConfig(), True), (SEIBConfig(_tuning=SEIBTuning(far_behind=1.0)), False)]:
         parts = SEIB(reg, clf, 1.0, float(np.std(r)), cfg, beyond=True, far=True, box=([0.0], [1.0])).parts(grid)
         band = parts["band"]
         assert np.any(band & right) and np.min(np.abs(grid[band & right, 0] - 0.44)) < 2 * 0.1  # within far_open
@@ -227,18 +227,18 @@ def test_a_failure_behind_the_band_point_does_not_block_its_far_ray():
 
 def test_far_settings_are_checked():
     with pytest.raises(InputError, match="far_reach"):
-        SEIBConfig(far_reach=(-1.0,))
+        SEIBTuning(far_reach=(-1.0,))
     with pytest.raises(InputError, match="far_open"):
-        SEIBConfig(far_open=-1.0)
+        SEIBTuning(far_open=-1.0)
     for bad in (-0.5, float("nan"), float("inf")):  # NaN switched the far look off without a word
         with pytest.raises(InputError, match="far_beta"):
             SEIBConfig(far_beta=bad)
     with pytest.raises(InputError, match="beta"):
-        SEIBConfig(beta=float("nan"))
-    assert SEIBConfig(far_reach=()).far_reach == ()  # never look far
+        SEIBTuning(beta=float("nan"))
+    assert SEIBConfig(far=False).far_reach == ()  # never look far
     for bad in (-1.5, 1.01, float("nan")):
         with pytest.raises(InputError, match="far_behind"):
-            SEIBConfig(far_behind=bad)
+            SEIBTuning(far_behind=bad)
 
 
 def test_looking_far_heads_where_the_return_may_be_highest():
@@ -297,7 +297,7 @@ def test_values_are_the_parts_values_when_only_positive_latent_means_are_worked_
     assert np.any(g <= 0) and np.any(g > 0)
     positive = 0
     for kw in ({}, {"beyond": True}, {"beyond": True, "far": True}, {"gated": False}):
-        acq = SEIB(reg, clf, 1.0, scale, SEIBConfig(p_band=p_band, p_inner=0.7), box=([0.0], [1.0]), **kw)
+        acq = SEIB(reg, clf, 1.0, scale, SEIBConfig(p_band=p_band), box=([0.0], [1.0]), **kw)
         parts = acq.parts(grid)
         positive += int(np.any(parts["value"] > 0))
         np.testing.assert_allclose(acq(grid), parts["value"], rtol=1e-9, atol=1e-12)
@@ -361,10 +361,35 @@ def test_behind_is_judged_along_the_ray_with_unequal_length_scales():
     near_ray = Classifier(np.array([[0.3, -1.2]]))  # within far_open of the ray points 2-4 length scales out
     behind = Classifier(np.array([[-0.15, -0.05]]))  # 1.5 g_S length scales away, but behind the ray
     far = dict(gated=True, beyond=True, far=True)
-    closed = SEIB(Regression(), near_ray, 0.0, 1.0, SEIBConfig(far_behind=0.25), **far).reach_ucb(band)
-    old_rule = SEIB(Regression(), near_ray, 0.0, 1.0, SEIBConfig(far_behind=1.0), **far).reach_ucb(band)
-    opened = SEIB(Regression(), behind, 0.0, 1.0, SEIBConfig(far_behind=0.25), **far).reach_ucb(band)
+    closed = SEIB(Regression(), near_ray, 0.0, 1.0, SEIBConfig(_tuning=SEIBTuning(far_behind=0.25)), **far).reach_ucb(band)
+    old_rule = SEIB(Regression(), near_ray, 0.0, 1.0, SEIBConfig(_tuning=SEIBTuning(far_behind=1.0)), **far).reach_ucb(band)
+    opened = SEIB(Regression(), behind, 0.0, 1.0, SEIBConfig(_tuning=SEIBTuning(far_behind=0.25)), **far).reach_ucb(band)
     assert closed[0] == pytest.approx(old_rule[0])  # the failure near the ray still ends it
     assert opened[0] > closed[0] + 0.1  # the one behind does not ...
-    blocked = SEIB(Regression(), behind, 0.0, 1.0, SEIBConfig(far_behind=1.0), **far).reach_ucb(band)
+    blocked = SEIB(Regression(), behind, 0.0, 1.0, SEIBConfig(_tuning=SEIBTuning(far_behind=1.0)), **far).reach_ucb(band)
     assert blocked[0] == -np.inf  # ... which every failure did before
+
+
+def test_in_six_dimensions_seeds_on_seib_s_level_land_in_its_band_where_sobol_points_do_not():
+    from corl.acquisition.maximize import MaximizerConfig, _boundary_seeds, _initial_candidates
+    from corl.gp.classification import expected_sigmoid
+    from corl.gp.fitting import fit_classifier, fit_regression
+    from corl.problem import Bounds
+
+    rng = np.random.default_rng(0)
+    box = Bounds(-np.ones(6), np.ones(6))
+    ok = 0.03 * rng.standard_normal((8, 6))  # a run's first successes, close around the start at 0
+    bad = 0.3 * rng.standard_normal((3, 6)) + 0.3  # and its failures further out
+    X = np.vstack([ok, bad])
+    s = np.r_[np.ones(8, bool), np.zeros(3, bool)]
+    clf = fit_classifier(X, s, box, -7.0).model
+    r = -np.sum((ok - 0.2) ** 2, axis=1)
+    acq = SEIB(fit_regression(ok, r, box).model, clf, best_return=float(r.max()), scale=float(np.std(r)))
+    g, g_var = clf.predict_latent(ok)
+    np.testing.assert_allclose(acq.boundary_level(ok), expected_sigmoid(g, g_var) - 0.5 * (0.55 + 0.7), atol=1e-12)
+    cfg = MaximizerConfig()
+    U, _ = _initial_candidates(6, cfg, np.random.default_rng(1))
+    in_band = lambda P: acq.parts(box.from_unit(P))["band"]  # noqa: E731
+    assert not in_band(U).any()  # 4,096 Sobol points: none in the band of a safe set this small
+    seeds = _boundary_seeds(acq.boundary_level, np.vstack([U[: cfg.level_samples], box.to_unit(X)]), box, cfg)
+    assert len(seeds) >= 64 and in_band(seeds).mean() > 0.9  # the seeds: nearly all in it

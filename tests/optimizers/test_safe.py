@@ -1,5 +1,7 @@
 """The CORL default optimizer (SafeBOOptimizer): safe search, bad input, registration."""
 
+from dataclasses import fields
+
 import numpy as np
 import pytest
 
@@ -118,10 +120,10 @@ def _one_d_runs(box, start, rollout, seibs):
 
 
 def test_looks_beyond_the_band_instead_of_stopping_at_a_local_peak():
-    from corl.acquisition.safe_ei import SEIBConfig
+    from corl.acquisition.safe_ei import SEIBConfig, SEIBTuning
 
-    runs = _one_d_runs((-np.pi, np.pi), 1.8, _local_peak_rollout,
-                       [("band only", SEIBConfig(beyond_rel=np.inf, far_reach=())), ("beyond", SEIBConfig())])
+    band_only = SEIBConfig(far=False, _tuning=SEIBTuning(beyond_rel=np.inf))
+    runs = _one_d_runs((-np.pi, np.pi), 1.8, _local_peak_rollout, [("band only", band_only), ("beyond", SEIBConfig())])
     old, new = runs["band only"], runs["beyond"]
     assert abs(old.best[0][0] - 1.88) < 0.1 and old.n_evals < 10  # the band-point gate stops at the local peak
     assert abs(new.best[0][0]) < 0.05 and new.best[1] > 0.99  # looking beyond crosses the valley to 0
@@ -139,7 +141,7 @@ def _valley_rollout(theta):  # valley-like: safe on (1, 9), a local peak at 2.8 
 def test_looks_far_across_a_valley_wider_than_a_length_scale():
     from corl.acquisition.safe_ei import SEIBConfig
 
-    runs = _one_d_runs((0.0, 10.0), 2.5, _valley_rollout, [("beyond", SEIBConfig(far_reach=())), ("far", SEIBConfig())])
+    runs = _one_d_runs((0.0, 10.0), 2.5, _valley_rollout, [("beyond", SEIBConfig(far=False)), ("far", SEIBConfig())])
     near, far = runs["beyond"], runs["far"]
     assert near.best[1] < 0.71 and near.stop_reason is not StopReason.BUDGET  # stops at the local peak
     assert abs(far.best[0][0] - 7.5) < 0.1 and far.best[1] > 0.99  # looking far crosses to the optimum
@@ -153,32 +155,25 @@ def _wide_valley_rollout(theta):  # safe on (1, 9), a local peak at 2.8 by the s
     return Outcome(True, 0.7 * np.exp(-((x - 2.8) ** 2) / 0.5) + np.exp(-((x - 8.5) ** 2) / 0.8))
 
 
-def test_far_ladder_looks_again_only_where_corl_would_stop():
+def test_seib_has_five_user_settings_and_a_removed_one_says_where_it_went():
+    from corl.acquisition import safe_ei
     from corl.acquisition.safe_ei import SEIBConfig
 
-    runs = _one_d_runs((0.0, 10.0), 2.5, _wide_valley_rollout,
-                       [("default", SEIBConfig()), ("ladder", SEIBConfig(far_ladder=(3.0,)))])
-    default, ladder = runs["default"], runs["ladder"]
-    # far_beta 2 sees no gain 4 length scales out: CORL stops at the local peak
-    assert default.best[1] < 0.71 and default.stop_reason is StopReason.NO_IMPROVEMENT
-    n = default.n_evals
-    np.testing.assert_array_equal(ladder.X_[:n], default.X_[:n])  # the same run up to where it stopped ...
-    assert abs(ladder.best[0][0] - 8.5) < 0.1 and ladder.best[1] > 0.99  # ... then across the valley
-    assert np.sum(~ladder.success_) <= 2 and ladder.n_evals < 40  # with few failures, and it still stops
-    assert ladder.stop_reason in (StopReason.NO_IMPROVEMENT, StopReason.CONVERGED)
-
-
-def test_far_ladder_settings_are_checked():
-    from corl.acquisition.safe_ei import SEIBConfig
-
-    for bad in ((-1.0,), (float("nan"),), (3.0, float("inf")), 3.0, None, "ab", (True,), ("3",)):
-        with pytest.raises(InputError, match="far_ladder"):
-            SEIBConfig(far_ladder=bad)
-    assert SEIBConfig().far_ladder == ()  # the default stops at once
-    assert SEIBConfig(far_ladder=[2, 3.5]).far_ladder == (2.0, 3.5)  # a list is kept as a tuple: hashable
-    hash(SEIBConfig(far_ladder=[3.0]))
+    assert [f.name for f in fields(SEIBConfig) if not f.name.startswith("_")] == [
+        "p_band", "band_rel", "far", "far_beta", "far_lengthscale"]
+    with pytest.raises(InputError, match="far_ladder.*far_lengthscale"):
+        SEIBConfig(far_ladder=(3.0,))
+    with pytest.raises(InputError, match="named constant corl.acquisition.safe_ei.TRUST_PER_DIM"):
+        SEIBConfig(trust_per_dim=0)
+    with pytest.raises(InputError, match="far=False"):
+        SEIBConfig(far_reach=())
+    cfg = SEIBConfig()  # the fixed values are the module's named constants
+    assert (cfg.p_inner, cfg.xi_rel, cfg.stop_value, cfg.far_reach) == (
+        safe_ei.P_INNER, safe_ei.XI_REL, safe_ei.STOP_VALUE, safe_ei.FAR_REACH)
     with pytest.raises(InputError, match="far_behind"):
-        SEIBConfig(far_behind=None)
+        safe_ei.SEIBTuning(far_behind=None)
+    with pytest.raises(InputError, match="far must be True or False"):
+        SEIBConfig(far="no")
 
 
 def test_a_user_sets_corl_s_acquisition_through_the_public_settings():
@@ -190,7 +185,7 @@ def test_a_user_sets_corl_s_acquisition_through_the_public_settings():
     fitted = corl.OptimizerSettings.for_box(corl.Bounds(*box), fitted=True)
     assert fitted.regression.fit_hyperparameters and fitted.seib == corl.SEIBConfig()
     runs = {}
-    for name, settings in [("default", None), ("no far look", replace(fitted, seib=corl.SEIBConfig(far_reach=())))]:
+    for name, settings in [("default", None), ("no far look", replace(fitted, seib=corl.SEIBConfig(far=False)))]:
         result = corl.optimize(_valley_rollout, box, start=[2.5], method="CORL", budget=40, seed=0, settings=settings)
         runs[name] = result
     assert runs["default"].return_ > 0.99  # crosses the valley (as the test above, through corl.optimize)
@@ -203,7 +198,7 @@ def test_method_settings_carry_seib_to_corl_s_black_box_step():
     from corl.acquisition.safe_ei import SEIBConfig
     from corl.methods import USER_SETTINGS
 
-    mine = SEIBConfig(far_reach=(), p_band=0.6)
+    mine = SEIBConfig(far=False, p_band=0.6)
     assert USER_SETTINGS.optimizer_settings().seib == SEIBConfig()
     assert replace(USER_SETTINGS, seib=mine).optimizer_settings().seib is mine
 
@@ -268,15 +263,6 @@ def test_an_optimizer_can_be_copied_and_pickled_after_a_decision():
         np.testing.assert_array_equal(twin.ask(), x)
         twin.tell(x, rollout(x))
         assert twin.n_evals == 2 and opt.n_evals == 1
-
-
-def test_far_ladder_without_a_far_look_stops_as_without_it():
-    from corl.acquisition.safe_ei import SEIBConfig
-
-    runs = _one_d_runs((0.0, 10.0), 2.5, _wide_valley_rollout,
-                       [("none", SEIBConfig(far_reach=())), ("ladder", SEIBConfig(far_reach=(), far_ladder=(3.0,)))])
-    np.testing.assert_array_equal(runs["ladder"].X_, runs["none"].X_)  # far_reach=(): never look far, ladder or not
-    assert runs["ladder"].stop_reason is runs["none"].stop_reason
 
 
 def test_the_readme_s_cautious_and_bold_settings_reach_the_optimizer():

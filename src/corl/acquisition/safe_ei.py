@@ -88,7 +88,7 @@ xi        : improvement margin ``xi_rel * scale``
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.special import ndtr
@@ -98,7 +98,7 @@ from corl.errors import InputError
 from corl.gp.classification import expected_sigmoid
 from corl.numerics import floor_variance
 
-__all__ = ["SEIBConfig", "SEIB", "expected_improvement"]
+__all__ = ["SEIBConfig", "SEIBTuning", "SEIB", "expected_improvement"]
 
 _INV_SQRT_2PI = 1.0 / np.sqrt(2.0 * np.pi)
 _HALF_AND_MARGIN = 0.5 + 1e-6  # p_band above this: p >= p_band needs a positive latent mean, beyond rounding
@@ -111,63 +111,143 @@ def expected_improvement(mu, var, threshold: float) -> np.ndarray:
     return np.maximum(sd * (u * ndtr(u) + _INV_SQRT_2PI * np.exp(-0.5 * u * u)), 0.0)
 
 
+def _is_number(v) -> bool:
+    """A real number (Python or NumPy), not a bool."""
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+
+
+# SEIB's fixed values, chosen on the safe-BO suite's training problems (docs/safe_bo_suite.md). A
+# user moves SEIB along the trade-offs of :class:`SEIBConfig` instead; each reason is beside its value.
+P_INNER = 0.7  # inner region p >= 0.7: EI alone acts there; below it lies the band the edge is mapped in (PIBU: 0.55)
+XI_REL = 0.01  # EI's margin, 1 % of the returns' spread: EI beside the best point is ~0, so the search moves on
+BETA = 2.0  # UCB width of the band-point gate: an edge is mapped where R may beat R^+ two posterior stds out
+BOUNDARY_WEIGHT = 0.1  # V's weight on a gated edge: an uncertain edge is mapped when EI is below a tenth of a spread
+STOP_VALUE = 1e-4  # stop when max a < 1e-4 spreads: nothing both plausible and safe is left
+TRUST_PER_DIM = 5  # below 5 successes per dimension, open the gate once before stopping: a g_R on few points
+#                    can be wrong about every edge
+BEYOND_REL = 0.5  # looking beyond, R must plausibly beat R^+ by half a spread: a step into the band risks a failure
+RAY_OPEN = 1.0  # a ray ends within one g_S length scale of a failed trial: g_S's p hardly drops there
+REACH = (0.0, 0.25, 0.5, 0.75, 1.0)  # the look beyond the band: ray points up to one length scale out
+FAR_REACH = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0)  # the far look: up to 4 length scales, where g_R has reverted
+FAR_REL = 0.1  # looking far, a tenth of a spread suffices: the ray starts well clear of every failure
+FAR_OPEN = 2.0  # looking far: band point and ray two g_S length scales from failures (untried space, not an edge)
+FAR_BEHIND = 0.25  # looking far, a failure behind the band point (cosine below -0.25 to the outward normal)
+#                    does not block: it says nothing about the side the ray explores (bumps-1d, 1-D)
+
+
 @checks.keywords()
 @dataclass(frozen=True)
-class SEIBConfig:
-    """Settings of SEIB; the defaults were chosen on the safe-BO suite's training problems."""
+class SEIBTuning:
+    """SEIB's fixed values in one place (defaults: the named constants above, with their reasons).
 
-    p_inner: float = 0.7  # inner region: p >= p_inner (PIBU: 0.55)
-    p_band: float = 0.55  # lowest p ever proposed: the boundary band is [p_band, p_inner) (PIBU: 0.45)
-    xi_rel: float = 0.01  # improvement margin as a fraction of the returns' spread
-    band_rel: float = 0.0  # the band-point gate's margin, a fraction of the spread (at least xi): fewer failures, fewer optima
-    beta: float = 2.0  # UCB_R width that gates the boundary term
-    boundary_weight: float = 0.1  # w_b: weight of V on a gated stretch of the boundary
-    stop_value: float = 1e-4  # stop when max a < stop_value (EI in units of the spread)
-    trust_per_dim: int = 5  # the gate may stop the search once there are trust_per_dim * m successes
-    beyond_rel: float = 0.5  # looking beyond: R must plausibly beat R^+ by this fraction of the spread
-    ray_open: float = 1.0  # the ray ends within ray_open g_S length scales of a failed trial
-    reach: tuple[float, ...] = (0.0, 0.25, 0.5, 0.75, 1.0)  # ray points beyond a band point, in length scales
-    far_reach: tuple[float, ...] = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0)  # looking far; () never looks far
-    far_rel: float = 0.1  # looking far: R must plausibly beat R^+_mu by this fraction of the spread
-    far_open: float = 2.0  # looking far: band point and ray at least far_open g_S length scales from failures
-    far_beta: float = 2.0  # looking far: UCB_R width on the ray (2.5 crosses more valleys, at a cost; see docs)
-    far_behind: float = 0.25  # looking far: a failure at cos < -far_behind to the outward normal does not block (1: all do)
-    far_ladder: tuple[float, ...] = ()  # before stopping: look far again with each of these UCB widths in turn
-    far_lengthscale: float | None = None  # looking far: g_S refitted with this length-scale prior median (box fraction)
+    Not a user setting: :mod:`corl.contexts` refines a start it trusts with values of its own
+    (``IN_A_NEW_SCENE``), and tests move one value to check what it does.
+    """
+
+    p_inner: float = P_INNER
+    xi_rel: float = XI_REL
+    beta: float = BETA
+    boundary_weight: float = BOUNDARY_WEIGHT
+    stop_value: float = STOP_VALUE
+    trust_per_dim: int = TRUST_PER_DIM
+    beyond_rel: float = BEYOND_REL
+    ray_open: float = RAY_OPEN
+    reach: tuple[float, ...] = REACH
+    far_reach: tuple[float, ...] = FAR_REACH
+    far_rel: float = FAR_REL
+    far_open: float = FAR_OPEN
+    far_behind: float = FAR_BEHIND
 
     def __post_init__(self) -> None:
-        names = ("p_inner", "p_band", "xi_rel", "band_rel", "beta", "boundary_weight", "stop_value", "trust_per_dim",
-                 "beyond_rel", "ray_open", "far_rel", "far_open", "far_beta", "far_behind")
+        names = ("p_inner", "xi_rel", "beta", "boundary_weight", "stop_value", "trust_per_dim", "beyond_rel",
+                 "ray_open", "far_rel", "far_open", "far_behind")
         wrong = [f"{n}={getattr(self, n)!r}" for n in names if not _is_number(getattr(self, n))]
         if wrong:
-            raise InputError(f"SEIBConfig settings must be numbers, got {', '.join(wrong)}")
-        if not 0.0 < self.p_band <= self.p_inner < 1.0:
-            raise InputError(f"SEIB needs 0 < p_band <= p_inner < 1, got {self.p_band}, {self.p_inner}")
-        values = (self.xi_rel, self.band_rel, self.beta, self.boundary_weight, self.stop_value, self.trust_per_dim,
-                  self.beyond_rel, self.ray_open, self.far_rel, self.far_open, self.far_beta)
+            raise InputError(f"SEIBTuning values must be numbers, got {', '.join(wrong)}")
+        if not 0.0 < self.p_inner < 1.0:
+            raise InputError(f"SEIBTuning.p_inner must lie in (0, 1), got {self.p_inner}")
+        values = (self.xi_rel, self.beta, self.boundary_weight, self.stop_value, self.trust_per_dim,
+                  self.beyond_rel, self.ray_open, self.far_rel, self.far_open)
         if any(np.isnan(v) for v in values) or min(values) < 0:
-            raise InputError("xi_rel, band_rel, beta, boundary_weight, stop_value, trust_per_dim, beyond_rel, ray_open, "
-                             "far_rel, far_open and far_beta must be >= 0 (beyond_rel=inf never looks beyond the band, "
-                             "band_rel=inf never maps the edge at the band points)")
-        if not (np.isfinite(self.beta) and np.isfinite(self.far_beta)):
-            raise InputError(f"beta and far_beta (UCB widths) must be finite, got {self.beta}, {self.far_beta}")
+            raise InputError("xi_rel, beta, boundary_weight, stop_value, trust_per_dim, beyond_rel, ray_open, far_rel "
+                             "and far_open must be >= 0 (beyond_rel=inf never looks beyond the band)")
+        if not np.isfinite(self.beta):
+            raise InputError(f"beta (a UCB width) must be finite, got {self.beta}")
         if not np.isfinite(self.stop_value):  # inf would stop before the first look
-            raise InputError(f"SEIBConfig.stop_value must be a finite number >= 0, got {self.stop_value}")
+            raise InputError(f"stop_value must be a finite number >= 0, got {self.stop_value}")
         if len(self.reach) == 0 or min(self.reach) < 0:
             raise InputError(f"reach needs at least one distance, all >= 0, got {self.reach}")
         if not -1.0 <= self.far_behind <= 1.0:  # NaN fails too
             raise InputError(f"far_behind is a cosine, in [-1, 1] (1: every failure blocks), got {self.far_behind!r}")
-        ladder = self.far_ladder
-        if not isinstance(ladder, (tuple, list)) or any(not _is_number(b) or not (np.isfinite(b) and b >= 0)
-                                                        for b in ladder):
-            raise InputError(f"far_ladder needs a tuple of finite UCB widths >= 0 (or (): stop at once), got {ladder!r}")
-        object.__setattr__(self, "far_ladder", tuple(float(b) for b in ladder))  # hashable, as a frozen config is
+        if self.far_reach and min(self.far_reach) < 0:
+            raise InputError(f"far_reach needs distances >= 0 (or none: never look far), got {self.far_reach}")
+
+
+_MOVED = "it is now the named constant corl.acquisition.safe_ei.{} (its reason is beside it)"
+_REMOVED = {name: _MOVED.format(name.upper()) for name in
+            ("p_inner", "xi_rel", "beta", "boundary_weight", "stop_value", "trust_per_dim", "beyond_rel", "ray_open",
+             "reach", "far_rel", "far_open", "far_behind")}
+_REMOVED["far_reach"] = "give far=False to never look far (the far look's reach " + _MOVED.format("FAR_REACH") + ")"
+_REMOVED["far_ladder"] = ("it found 12 more optima in the suite's 840 runs at 6 % more failures, where "
+                          "far_lengthscale=0.15 finds 28 more at 4 % more: use far_lengthscale")
+
+
+@checks.keywords(removed=_REMOVED)
+@dataclass(frozen=True)
+class SEIBConfig:
+    """The five settings of SEIB a user may move, each along one trade-off (docs/guide/safe-bo.md).
+
+    Every other value is a named constant of this module, with the reason for it beside it.
+    """
+
+    p_band: float = 0.55  # the lowest success probability ever proposed: higher fails less, maps edges later
+    band_rel: float = 0.0  # an edge is mapped only for a gain of this fraction of the spread: fewer failures, fewer optima
+    far: bool = True  # look across valleys of R before stopping: more optima, more trials (False: stop sooner)
+    far_beta: float = 2.0  # the far look's UCB width: 2.5 crosses more valleys, walks down more slopes that only fall
+    far_lengthscale: float | None = None  # the far look's g_S length-scale prior median (box fraction): 0.15 finds
+    #                                       more optima for a few more failures (None: the fit's own, 0.1)
+    _tuning: SEIBTuning = field(default=SEIBTuning(), repr=False)  # corl's own: see SEIBTuning
+
+    def __post_init__(self) -> None:
+        wrong = [f"{n}={getattr(self, n)!r}" for n in ("p_band", "band_rel", "far_beta")
+                 if not _is_number(getattr(self, n))]
+        if wrong:
+            raise InputError(f"SEIBConfig settings must be numbers, got {', '.join(wrong)}")
+        if not isinstance(self.far, (bool, np.bool_)):
+            raise InputError(f"SEIBConfig.far must be True or False, got {self.far!r}")
+        if not isinstance(self._tuning, SEIBTuning):
+            raise InputError(f"SEIBConfig._tuning must be a SEIBTuning, got {type(self._tuning).__name__}")
+        if not 0.0 < self.p_band <= self.p_inner < 1.0:
+            raise InputError(f"SEIB needs 0 < p_band <= {self.p_inner} (the inner region's p; NaN is refused), "
+                             f"got p_band={self.p_band}")
+        if np.isnan(self.band_rel) or self.band_rel < 0:
+            raise InputError(f"SEIBConfig.band_rel must be >= 0 (inf: never map the edge at the band points), "
+                             f"got {self.band_rel}")
+        if not (np.isfinite(self.far_beta) and self.far_beta >= 0):
+            raise InputError(f"SEIBConfig.far_beta (a UCB width) must be finite and >= 0, got {self.far_beta}")
         fl = self.far_lengthscale
         if fl is not None and not (_is_number(fl) and np.isfinite(fl) and fl > 0):
             raise InputError(f"far_lengthscale is g_S's length-scale prior median for the far look, a fraction of the "
                              f"box > 0 (None: the same g_S), got {fl!r}")
-        if self.far_reach and min(self.far_reach) < 0:
-            raise InputError(f"far_reach needs distances >= 0 (or none: never look far), got {self.far_reach}")
+
+    # the fixed values, read where SEIB needs them
+    p_inner = property(lambda self: self._tuning.p_inner)
+    xi_rel = property(lambda self: self._tuning.xi_rel)
+    beta = property(lambda self: self._tuning.beta)
+    boundary_weight = property(lambda self: self._tuning.boundary_weight)
+    stop_value = property(lambda self: self._tuning.stop_value)
+    trust_per_dim = property(lambda self: self._tuning.trust_per_dim)
+    beyond_rel = property(lambda self: self._tuning.beyond_rel)
+    ray_open = property(lambda self: self._tuning.ray_open)
+    reach = property(lambda self: self._tuning.reach)
+    far_rel = property(lambda self: self._tuning.far_rel)
+    far_open = property(lambda self: self._tuning.far_open)
+    far_behind = property(lambda self: self._tuning.far_behind)
+
+    @property
+    def far_reach(self) -> tuple[float, ...]:
+        """The far look's ray, in length scales; () when ``far`` is off."""
+        return self._tuning.far_reach if self.far else ()
 
     def check_classifier(self, classifier) -> None:
         """Refuse ``far_lengthscale`` where it cannot act: ``classifier`` (a ``ClassifierConfig``) must be
@@ -183,11 +263,6 @@ class SEIBConfig:
         if not prior.low <= fl <= prior.high:
             raise InputError(f"SEIBConfig.far_lengthscale must lie within g_S's length-scale prior bounds "
                              f"[{prior.low}, {prior.high}] (fractions of the box), got {fl}")
-
-
-def _is_number(v) -> bool:
-    """A real number (Python or NumPy), not a bool."""
-    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
 
 
 class SEIB:
@@ -261,6 +336,15 @@ class SEIB:
         value = edge if far else np.where(inner, ei, 0.0) + edge  # had its turn and left nothing new
         return {"value": value, "ei": ei, "ucb_gate": gate, "boundary": boundary, "inner": inner,
                 "band": band, "proba": p}
+
+    def boundary_level(self, X: np.ndarray) -> np.ndarray:
+        """``p - (p_band + p_inner) / 2`` at ``X`` (s, m) -> (s,): zero in the middle of the band.
+
+        The maximiser (:func:`corl.acquisition.maximize.maximize`) seeds candidates where this
+        crosses zero in m >= 3 dimensions: there the band is too thin a shell for random points to hit.
+        """
+        g, g_var = self.classifier.predict_latent(X)
+        return expected_sigmoid(g, g_var) - 0.5 * (self.config.p_band + self.config.p_inner)
 
     def outward(self, X: np.ndarray) -> np.ndarray:
         """Unit outward normals of the safe set at ``X`` (s, m) -> (s, m): ``-grad mu_g / |grad mu_g|``.

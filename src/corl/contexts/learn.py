@@ -21,6 +21,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from corl.acquisition.safe_ei import SEIBTuning
 from corl.contexts.models import ContextData, ContextualModels
 from corl import checks
 from corl.contexts.skill import Skill, context_task, scene_of
@@ -41,8 +42,8 @@ __all__ = ["ContextualCORL", "StartedTask", "contextual_factory", "plain_learner
 #: spread (EI margin; a hundredth in one scene). On six door scenes held out from the bench (a skill
 #: of 8 scenes, 40 trials each), failures per scene: 9.3 with SEIB's defaults, 3.3 with the band
 #: [0.7, 0.85), 0.8 with this one, whose return also gained most over the start (+0.033 against +0.016).
-IN_A_NEW_SCENE = {"trust_per_dim": 0, "far_reach": (), "p_band": 0.85, "p_inner": 0.95, "xi_rel": 0.1,
-                  "stop_value": 1e-3}
+IN_A_NEW_SCENE = {"p_band": 0.85, "far": False,
+                  "_tuning": SEIBTuning(trust_per_dim=0, p_inner=0.95, xi_rel=0.1, stop_value=1e-3)}
 
 
 class StartedTask:

@@ -61,7 +61,7 @@ class OptimizerSettings:
     distance_scale : (m,) the unit the two distances are measured in per dimension, or None
         (theta's own units). SAL measures in theta's own units.
     sal : SAL's settings; None takes ``SALConfig(regression=regression)``.
-    seib : CORL's (SEIB's) acquisition settings, e.g. ``SEIBConfig(far_reach=())`` never looks far
+    seib : CORL's (SEIB's) acquisition settings, e.g. ``SEIBConfig(far=False)`` never looks far
         past what it has tried before stopping (fewer trials and failures, no valley crossing).
 
     Notes
@@ -231,7 +231,7 @@ def make_optimizer(name: str, bounds, start, *, budget: int = 50, seed=None,
     seed : an integer >= 0, a numpy Generator or None.
     settings : :class:`OptimizerSettings`; None takes :meth:`OptimizerSettings.for_box` (with
         ``fitted=True`` for "CORL" and "SEIB"). To change one thing, start from that:
-        ``replace(OptimizerSettings.for_box(box, fitted=True), seib=SEIBConfig(far_reach=()))``.
+        ``replace(OptimizerSettings.for_box(box, fitted=True), seib=SEIBConfig(far=False))``.
 
     Raises
     ------
