@@ -19,9 +19,12 @@ Peers are optional (``pip install corl[bench]``): BoTorch's constrained LogEI wi
 labels as a GP constraint (both GPs' hyperparameters fitted), and SafeOpt, which needs GPy and so
 numpy < 2: it runs in its own interpreter, ``--safeopt-python`` (a venv with safeopt), and is
 skipped when there is none. ``--speed`` times one iteration at 100 points in 2-D for CORL and
-BoTorch in this run.
+BoTorch in this run (the median of ``--speed-repeats``); ``--speed 5x200`` at 200 points of a
+run in 5-D, ``--speed-threads 1,2`` at one and two threads, ``--speed-only`` without the suite.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/safe_bo_suite.py --starts 20
+    OPENBLAS_NUM_THREADS=1 python benchmarks/safe_bo_suite.py --speed-only --speed 2x100:uniform 2x100 5x200 \
+        --speed-threads 1,2
 """
 
 from __future__ import annotations
@@ -321,6 +324,16 @@ PROBLEMS = [
     Problem("kilonewton-2d", (-2.0, -2.0), (2.0, 2.0), (-0.8, -0.5), _ball((0.0, 0.0), 1.4),
             lambda X: -2e5 + 1e4 * _sq((0.7, 0.6))(X), "2-D disc, returns near -2e5 in steps of 1e4 (units)",
             role="held-out"),
+    # 5-7 D training problems (issue 25): written, with batch 12, before any change for 5-7 D, and used to design it
+    Problem("sphere-6d", (-1.0,) * 6, (1.0,) * 6, (-0.4, 0.0, 0.0, 0.0, 0.0, 0.0), _ball((0.0,) * 6, 0.85),
+            lambda X: X @ np.array([1.0, 0.5, 0.0, 0.0, 0.3, 0.0]), "6-D ball, R a plane: the optimum on its surface",
+            known=(0.85 * np.sqrt(1.34), -0.85 * np.sqrt(1.34))),
+    Problem("cube-5d", (-1.0,) * 5, (1.0,) * 5, (-0.3, -0.3, 0.0, 0.0, 0.0), lambda X: np.all(np.abs(X) < 0.6, axis=1),
+            _sq((0.5, 0.4, -0.3, 0.2, 0.1)), "5-D cube, optimum inside near a corner", known=(0.0, -4.15)),
+    Problem("ellipsoid-7d", (-1.0,) * 7, (1.0,) * 7, (-0.2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+            lambda X: np.sum((X / np.array([0.8, 0.7, 0.7, 0.6, 0.6, 0.5, 0.5])) ** 2, axis=1) < 1.0,
+            _sq((0.4, -0.3, 0.2, 0.0, 0.1, 0.0, -0.1)), "7-D ellipsoid, optimum inside",
+            known=(0.0, -(0.8 + np.sqrt(0.31)) ** 2)),
     # batch 12 (issue 25): written before g_S's length scales adapted to a thin safe set and before any change
     # for 5-7 D; held out, run once after them (docs/safe_bo_suite.md, "Thin sets" and "5 to 7 dimensions")
     Problem("slit-1d", (0.0,), (10.0,), (4.03,), lambda X: (X[:, 0] > 4.0) & (X[:, 0] < 4.08),
@@ -574,23 +587,114 @@ def score(p: Problem, truth: Truth, X, s, r) -> dict:
             "trials": len(X)}
 
 
-def speed(n: int = 100, seed: int = 0) -> dict:
-    """ms of one iteration at n points in 2-D: CORL's and BoTorch's, each the best of three.
+_SPEED_LAYOUTS = ("uniform", "clustered")
+_SPEED_PROBLEMS = {2: "inside-2d", 5: "cube-5d"}  # by name: a problem added before them must not move a figure
+
+
+def speed_problem(dim: int) -> Problem:
+    """The problem a timed iteration is set on: inside-2d in 2-D (as always), cube-5d in 5-D, else the first in m-D.
+
+    cube-5d: a cube of half-width 0.6 in [-1, 1]^5, the optimum inside (a training problem: the
+    held-out ones stay out of everything but their one run). Only its box, safe set and returns are
+    used, on points of :func:`speed_data`.
+    """
+    for p in PROBLEMS:
+        if p.bounds.dim == dim and p.name == _SPEED_PROBLEMS.get(dim, p.name):
+            return p
+    raise ValueError(f"no problem of the suite has {dim} dimensions (the suite has "
+                     f"{sorted({p.bounds.dim for p in PROBLEMS})})")
+
+
+def speed_data(p: Problem, n: int, seed: int = 0, layout: str = "uniform", fail_share: float = 0.15):
+    """``n`` points on ``p`` with success labels and returns (NaN on failure): ``(X, s, r)``.
+
+    ``uniform``: n random points in the box, the layout of the 2-D figure reported until now (on
+    inside-2d about 72 % of them fail). ``clustered``, as a safe-BO run at that size has them: the
+    start, then successes drawn around it in a spread that widens as the run goes on (a normal of
+    4 % of the box width for the first, 29 % for the last; an unsafe or out-of-box draw is drawn
+    again), then ``round(fail_share * n)`` failures just outside the safe set where the run probed
+    it: on the ray from the start through a random success, 1-10 % of the box width (unit-box
+    units, as ``beyond``) past the edge of the safe set. The points after the start are shuffled.
+    """
+    if layout not in _SPEED_LAYOUTS:
+        raise ValueError(f"layout must be one of {_SPEED_LAYOUTS}, got {layout!r}")
+    rng = np.random.default_rng(seed)
+    b, m = p.bounds, p.bounds.dim
+    if layout == "uniform":
+        X = b.from_unit(rng.random((n, m)))
+        s = p.safe(X)
+        return X, s, np.where(s, p.ret(X), np.nan)
+
+    def safe(U):
+        return p.safe(b.from_unit(np.atleast_2d(U)))
+
+    u0 = b.to_unit(np.array(p.start, float))
+    n_fail = min(int(round(fail_share * n)), max(n - 2, 0))
+    n_ok = n - n_fail
+    ok, tries = [u0], 0
+    while len(ok) < n_ok:
+        tries += 1
+        if tries > 10_000 * n:
+            raise RuntimeError(f"{p.name}: too few safe draws around the start for {n_ok} successes")
+        u = u0 + (0.04 + 0.25 * len(ok) / max(n_ok - 1, 1)) * rng.standard_normal(m)
+        if np.all((u >= 0.0) & (u <= 1.0)) and safe(u)[0]:
+            ok.append(u)
+    ok, fails, tries = np.array(ok), [], 0
+    while len(fails) < n_fail:
+        tries += 1
+        if tries > 1_000 * n:
+            raise RuntimeError(f"{p.name}: no failure just outside the safe set could be placed")
+        d = ok[rng.integers(1, n_ok)] - u0
+        if not np.linalg.norm(d):
+            continue
+        d = d / np.linalg.norm(d)
+        lo, hi = 0.0, 2.0 * np.sqrt(m)  # from the start (safe) to well outside the unit box
+        if safe(u0 + hi * d)[0]:
+            continue
+        for _ in range(40):  # the edge of the safe set on this ray
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if safe(u0 + mid * d)[0] else (lo, mid)
+        u = u0 + (hi + rng.uniform(0.01, 0.10)) * d
+        if np.all((u >= 0.0) & (u <= 1.0)) and not safe(u)[0]:
+            fails.append(u)
+    U = np.vstack([ok, np.array(fails).reshape(-1, m)])
+    U = U[np.concatenate([[0], 1 + rng.permutation(len(U) - 1)])]
+    X = b.from_unit(U)
+    s = p.safe(X)
+    return X, s, np.where(s, p.ret(X), np.nan)
+
+
+def _stats(times) -> dict:
+    ms = 1e3 * np.asarray(times, float)
+    return {"median": float(np.median(ms)), "min": float(ms.min()), "max": float(ms.max()), "all": ms.tolist()}
+
+
+def speed(n: int = 100, seed: int = 0, *, dim: int = 2, layout: str = "uniform", repeats: int = 5,
+          threads: int = 1) -> dict:
+    """ms of one iteration at n points in ``dim``-D: CORL's and BoTorch's, each the median of ``repeats``.
+
+    The points: :func:`speed_data` (``layout``) on :func:`speed_problem` (``dim``); by default 100
+    uniform points on inside-2d, the figure reported since the first.
 
     CORL: the n-th point is told and the next decision made (``done``): both GPs fitted,
     warm-started from the fit at n - 1 points as in a run, and SEIB maximised with every look the
     decision needs (``CORL_stops``: it decided to stop, which asks the looks beyond the band and
-    far too). The three repeats must decide alike (the same stop, or the same next point), else
-    ``RuntimeError``. BoTorch: both GPs fitted and ``optimize_acqf``.
+    far too). The repeats must decide alike (the same stop, or the same next point), else
+    ``RuntimeError``. Its BLAS threads are this process's (``OPENBLAS_NUM_THREADS``).
+    BoTorch (:func:`botorch_step`): both GPs fitted and ``optimize_acqf``; one untimed call first
+    (torch's first calls pay one-off costs), then ``repeats`` timed, seeds ``seed + k``, with
+    ``torch.set_num_threads(threads)`` (restored after). ``BoTorch`` is None, and ``BoTorch_skip``
+    says why, when torch or botorch cannot be imported.
+
+    ``CORL`` and ``BoTorch`` are medians; ``*_min``, ``*_max`` and ``*_all`` (ms) go with them.
     """
-    p = PROBLEMS[1]
-    rng = np.random.default_rng(seed)
-    X = p.bounds.from_unit(rng.random((n, 2)))
-    s = p.safe(X)
-    r = np.where(s, p.ret(X), np.nan)
-    out = {}
+    p = speed_problem(dim)
+    X, s, r = speed_data(p, n, seed, layout)
+    out = {"problem": p.name, "dim": dim, "n": n, "layout": layout, "successes": int(s.sum()),
+           "failures": int((~s).sum()), "repeats": repeats, "threads": threads, "blas": _blas_threads(),
+           "torch_threads": None}
     times, decisions = [], []
-    for _ in range(3):
+    for _ in range(max(int(repeats), 1)):
         opt = SafeBOOptimizer(p.bounds, max_evals=10 * n, seed=seed)
         for x in X[:-1]:
             opt.tell(x, rollout(p, x))
@@ -601,22 +705,150 @@ def speed(n: int = 100, seed: int = 0) -> dict:
         times.append(time.perf_counter() - t0)
         decisions.append(opt.stop_reason or tuple(float(v) for v in opt.ask()))  # after the clock
     if len(set(decisions)) != 1:  # the same data and seed: a timing over different work would mean nothing
-        raise RuntimeError(f"the three timed CORL decisions differ ({decisions}); the timing is not comparable")
-    out["CORL"] = 1e3 * min(times)
+        raise RuntimeError(f"the {len(decisions)} timed CORL decisions differ ({decisions}); the timing is not "
+                           "comparable")
+    st = _stats(times)
+    out.update({"CORL": st["median"], "CORL_min": st["min"], "CORL_max": st["max"], "CORL_all": st["all"]})
     out["CORL_stops"] = isinstance(decisions[0], StopReason)
+    out["CORL_decision"] = decisions[0].value if out["CORL_stops"] else "proposal"
+    out.update({"BoTorch": None, "BoTorch_skip": None})
     try:
         import torch
 
-        torch.set_num_threads(1)  # one thread each: run the suite with OPENBLAS_NUM_THREADS=1 for CORL
-        times = []
-        for k in range(3):  # best of three, as CORL's
-            t0 = time.perf_counter()
-            botorch_step(p.bounds, X, s, r, seed + k)
-            times.append(time.perf_counter() - t0)
-        out["BoTorch"] = 1e3 * min(times)
-    except ImportError:
-        out["BoTorch"] = None
+        before = torch.get_num_threads()
+        torch.set_num_threads(threads)  # as many as CORL's BLAS has: run with OPENBLAS_NUM_THREADS=threads
+        out["torch_threads"] = torch.get_num_threads()
+        try:
+            botorch_step(p.bounds, X, s, r, seed - 1)  # warm-up, not timed
+            times = []
+            for k in range(max(int(repeats), 1)):
+                t0 = time.perf_counter()
+                botorch_step(p.bounds, X, s, r, seed + k)
+                times.append(time.perf_counter() - t0)
+        finally:
+            torch.set_num_threads(before)
+        st = _stats(times)
+        out.update({"BoTorch": st["median"], "BoTorch_min": st["min"], "BoTorch_max": st["max"],
+                    "BoTorch_all": st["all"]})
+    except ImportError as exc:
+        out["BoTorch_skip"] = f"{type(exc).__name__}: {exc}"
     return out
+
+
+def _blas_threads() -> str:
+    """The BLAS/OpenMP thread pools loaded in this process and their sizes (threadpoolctl), or the env."""
+    env = ", ".join(f"{k}={os.environ[k]}" for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+                    if k in os.environ) or "no *_NUM_THREADS set"
+    try:
+        from threadpoolctl import threadpool_info
+    except ImportError:
+        return f"{env} (threadpoolctl not installed: pools not listed)"
+    pools = [f"{i.get('internal_api')}[{Path(i.get('filepath', '?')).name.split('.')[0]}]={i.get('num_threads')}"
+             for i in threadpool_info()]
+    return f"{env}; pools: {', '.join(pools) or 'none'}"
+
+
+def speed_versions() -> str:
+    """corl (with its git commit) and the libraries the timings depend on, as this interpreter has them."""
+    from importlib import metadata
+    import platform
+
+    repo = Path(__file__).resolve().parents[1]
+    try:
+        version = metadata.version("corl")
+    except metadata.PackageNotFoundError:
+        version = "not installed"
+    try:
+        head = subprocess.run(["git", "-C", str(repo), "rev-parse", "--short", "HEAD"], capture_output=True,
+                              text=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(repo), "status", "--porcelain", "--", "src"], capture_output=True,
+                               text=True, timeout=10).stdout.split("\n")
+        dirty = [line[3:].removeprefix("src/") for line in dirty if line.strip()]
+        git = f", git {head}" + (f" + uncommitted changes in src/: {', '.join(dirty)}" if dirty else "") if head else ""
+    except (OSError, subprocess.SubprocessError):
+        git = ""
+    parts = [f"corl {version} (imported from {repo / 'src'}{git})"]
+    for name in ("numpy", "scipy", "torch", "botorch", "gpytorch", "linear_operator"):
+        try:
+            mod = __import__(name)
+            parts.append(f"{name} {getattr(mod, '__version__', None) or metadata.version(name)}")
+        except ImportError:
+            parts.append(f"{name} not installed")
+    return (", ".join(parts) + f"; Python {platform.python_version()} ({sys.executable}), "
+            f"{platform.system()} {platform.machine()}, {os.cpu_count()} CPUs")
+
+
+def parse_speed_case(spec: str) -> tuple[int, int, str]:
+    """``DxN`` or ``DxN:LAYOUT`` (``5x200``, ``2x100:uniform``) -> (D, N, LAYOUT); the layout defaults to clustered."""
+    import re
+
+    m = re.fullmatch(r"(\d+)x(\d+)(?::(\w+))?", spec.strip())
+    if not m or (m.group(3) or "clustered") not in _SPEED_LAYOUTS or int(m.group(2)) < 4:
+        raise ValueError(f"a --speed case is DxN or DxN:LAYOUT with N >= 4 and LAYOUT one of {_SPEED_LAYOUTS}, "
+                         f"got {spec!r}")
+    return int(m.group(1)), int(m.group(2)), m.group(3) or "clustered"
+
+
+def speed_rows(cases, threads=(1,), repeats: int = 5, seed: int = 0) -> list[dict]:
+    """:func:`speed` of every case at every thread count.
+
+    A thread count equal to this process's ``OPENBLAS_NUM_THREADS`` runs here; any other in a fresh
+    interpreter with ``OPENBLAS_NUM_THREADS``, ``OMP_NUM_THREADS`` and ``MKL_NUM_THREADS`` set to it
+    (a BLAS reads them when it loads).
+    """
+    rows = []
+    for k in threads:
+        if os.environ.get("OPENBLAS_NUM_THREADS") == str(k):
+            rows += [speed(n, seed, dim=d, layout=lay, repeats=repeats, threads=k) for d, n, lay in cases]
+            continue
+        job = json.dumps({"cases": [list(c) for c in cases], "threads": k, "repeats": repeats, "seed": seed})
+        env = {**os.environ, "OPENBLAS_NUM_THREADS": str(k), "OMP_NUM_THREADS": str(k), "MKL_NUM_THREADS": str(k)}
+        done = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--speed-worker", job], env=env,
+                              capture_output=True, text=True)
+        if done.returncode != 0:
+            raise RuntimeError(f"the speed run at {k} threads failed ({done.returncode}):\n{done.stderr[-3000:]}")
+        rows += json.loads(done.stdout.strip().splitlines()[-1])
+    return rows
+
+
+def print_speed(rows, versions: str) -> None:
+    """The speed table: one row per case and thread count, then what was timed, the threads and the versions."""
+    reps = sorted({r["repeats"] for r in rows})
+    print(f"\nOne iteration at n points, CORL and BoTorch on the same points: median ms of {'/'.join(map(str, reps))} "
+          "repeats (min-max)")
+    print(f"{'case':<50} {'thr':>3} {'CORL ms':>22} {'CORL decides':<15} {'BoTorch ms':>22} {'BoTorch/CORL':>12}")
+    print("-" * 130)
+    for r in rows:
+        case = f"{r['dim']}-D {r['problem']}, {r['n']} pts {r['layout']} ({r['successes']} ok, {r['failures']} fail)"
+        corl = f"{r['CORL']:.1f} ({r['CORL_min']:.1f}-{r['CORL_max']:.1f})"
+        if r["BoTorch"] is None:
+            bt, ratio = "skipped", ""
+        else:
+            bt = f"{r['BoTorch']:.1f} ({r['BoTorch_min']:.1f}-{r['BoTorch_max']:.1f})"
+            ratio = f"{r['BoTorch'] / r['CORL']:.1f}x"
+        print(f"{case:<50} {r['threads']:>3} {corl:>22} {r['CORL_decision']:<15} {bt:>22} {ratio:>12}")
+    print("\nCORL   : tell the n-th point and decide (SafeBOOptimizer: g_R and g_S fitted with their hyperparameters, "
+          "warm-started\n         from the fit at n - 1 points as in a run; SEIB maximised with every staged look the "
+          "decision needs)")
+    print("BoTorch: botorch_step: a SingleTaskGP on the returns and one on the +-1 labels, both fitted from scratch "
+          "(fit_gpytorch_mll),\n         LogConstrainedExpectedImprovement by optimize_acqf (4 restarts, 128 raw "
+          "samples); one untimed call before the repeats")
+    print("threads: thr = OPENBLAS_NUM_THREADS (and OMP_/MKL_) of the timing process for CORL and torch.set_num_threads"
+          "(thr) inside\n         the BoTorch timing; a thr other than this process's OPENBLAS_NUM_THREADS ran in a "
+          "subprocess set so")
+    for k in sorted({r["threads"] for r in rows}):
+        r = next(r for r in rows if r["threads"] == k)
+        torch_threads = "" if r["torch_threads"] is None else f"; torch.get_num_threads() in BoTorch's timing: " \
+            f"{r['torch_threads']}"
+        print(f"  thr {k}: when CORL was timed: {r['blas']}{torch_threads}")
+        if k > 1 and (r["blas"].count("openblas[") > 1 or "not listed" in r["blas"]):
+            print(f"         (numpy and scipy may each load an OpenBLAS: {k} threads each, on {os.cpu_count()} CPUs, "
+                  "can contend and slow CORL)")
+    skipped = {r["BoTorch_skip"] for r in rows if r["BoTorch_skip"]}
+    if skipped:
+        print(f"BoTorch skipped: torch/botorch cannot be imported here ({'; '.join(sorted(skipped))}); "
+              "pip install 'corl[bench]'")
+    print(f"versions: {versions}")
 
 
 def main(argv=None) -> None:
@@ -632,7 +864,17 @@ def main(argv=None) -> None:
     local = Path(__file__).resolve().parents[1] / ".venv-safeopt" / "bin" / "python"
     ap.add_argument("--safeopt-python", default=os.environ.get("CORL_SAFEOPT_PYTHON", str(local)),
                     help="an interpreter with safeopt installed (default $CORL_SAFEOPT_PYTHON)")
-    ap.add_argument("--speed", action="store_true", help="also time one iteration at 100 points in 2-D")
+    ap.add_argument("--speed", nargs="*", default=None, metavar="DxN[:LAYOUT]",
+                    help="also time one iteration of CORL and of BoTorch: alone, at 100 uniform points in 2-D (as "
+                         "always); else at each case given, D dimensions and N points, LAYOUT clustered (default: "
+                         "a run's points around the start, 15 %% failing just outside the safe set) or uniform, "
+                         "e.g. --speed 2x100:uniform 5x200")
+    ap.add_argument("--speed-only", action="store_true", help="time only (--speed's cases): run no problem")
+    ap.add_argument("--speed-threads", default="1", metavar="K[,K...]",
+                    help="thread counts to time at (default 1): OpenBLAS threads for CORL, torch threads for BoTorch; "
+                         "one other than this process's OPENBLAS_NUM_THREADS runs in a subprocess")
+    ap.add_argument("--speed-repeats", type=int, default=5, help="timed repeats per method and case (median)")
+    ap.add_argument("--speed-worker", default=None, help=argparse.SUPPRESS)  # one thread count, in a subprocess
     ap.add_argument("--json", default=None, help="write every run's numbers here")
     ap.add_argument("--table", nargs="+", default=None, metavar="JSON",
                     help="run nothing: print the table of runs saved with --json (several files are merged; a "
@@ -647,6 +889,27 @@ def main(argv=None) -> None:
     ap.add_argument("--compare", nargs=2, default=None, metavar=("BEFORE", "AFTER"),
                     help="run nothing: CORL's runs in two --json files side by side, per problem")
     args = ap.parse_args(argv)
+    if args.speed_worker:  # speed_rows' subprocess: its cases at its thread count, as JSON on the last line
+        job = json.loads(args.speed_worker)
+        rows = [speed(n, job["seed"], dim=d, layout=lay, repeats=job["repeats"], threads=job["threads"])
+                for d, n, lay in job["cases"]]
+        print(json.dumps(rows))
+        return
+    if args.speed_only and args.speed is None:
+        args.speed = []
+    if args.speed is not None:
+        try:
+            speed_cases = [parse_speed_case(c) for c in args.speed] or [(2, 100, "uniform")]
+            for d, _, _ in speed_cases:
+                speed_problem(d)  # a dimension the suite has
+            speed_threads = [int(k) for k in args.speed_threads.split(",") if k.strip()]
+        except ValueError as exc:
+            ap.error(str(exc))
+        if not speed_threads or min(speed_threads) < 1 or args.speed_repeats < 1:
+            ap.error("--speed-threads needs counts >= 1 and --speed-repeats at least 1")
+    if args.speed_only:
+        _report_speed(speed_cases, speed_threads, args.speed_repeats, args.seed)
+        return
     if (args.verdict or args.trade_off) and not args.table:
         ap.error("--verdict and --trade-off read saved runs: give them with --table FILE...")
     if args.compare and args.table:
@@ -696,14 +959,23 @@ def main(argv=None) -> None:
     print(_table_title(args.budget))
     for p, name, runs, ms in rows:
         print(_row(p, name, runs, ms))
-    if args.speed:
-        sp = speed()
-        bt = "not installed" if sp["BoTorch"] is None else f"{sp['BoTorch']:.0f} ms"
-        ratio = "" if sp["BoTorch"] is None else f" ({sp['BoTorch'] / sp['CORL']:.0f}x)"
-        how = "a decision to stop: every look" if sp["CORL_stops"] else "a proposal"
-        print(f"\none iteration at 100 points in 2-D: CORL {sp['CORL']:.0f} ms ({how}), BoTorch {bt}{ratio}")
+    if args.speed is not None:
+        _report_speed(speed_cases, speed_threads, args.speed_repeats, args.seed)
     if args.json:
         Path(args.json).write_text(json.dumps(records, indent=1))
+
+
+def _report_speed(cases, threads, repeats: int, seed: int) -> None:
+    """``--speed``: the table of :func:`print_speed`, and the one line it printed before for 2-D, 100 uniform points."""
+    rows = speed_rows(cases, threads, repeats, seed)
+    print_speed(rows, speed_versions())
+    for sp in rows:
+        if (sp["dim"], sp["n"], sp["layout"]) == (2, 100, "uniform") and sp["threads"] == min(threads):
+            bt = "not installed" if sp["BoTorch"] is None else f"{sp['BoTorch']:.0f} ms"
+            ratio = "" if sp["BoTorch"] is None else f" ({sp['BoTorch'] / sp['CORL']:.0f}x)"
+            how = "a decision to stop: every look" if sp["CORL_stops"] else "a proposal"
+            print(f"\none iteration at 100 points in 2-D: CORL {sp['CORL']:.0f} ms ({how}), BoTorch {bt}{ratio}"
+                  f" (medians, {sp['threads']} thread)")
 
 
 def _labelled(arg) -> tuple[str | None, str]:

@@ -29,7 +29,8 @@ def test_every_problem_has_safe_starts_in_the_box_and_an_optimum_above_them(suit
             assert np.all(truth.beyond(p.bounds.to_unit(starts)) <= spacing), p.name
 
 
-@pytest.mark.parametrize("name", ["thin-ring-2d", "zigzag-2d", "slit-3d", "ball-5d", "cap-6d", "edge-7d"])
+@pytest.mark.parametrize("name", ["thin-ring-2d", "zigzag-2d", "slit-3d", "ball-5d", "cap-6d", "edge-7d", "sphere-6d",
+                                  "cube-5d", "ellipsoid-7d", "megajoule-5d"])
 def test_a_truth_worked_out_by_hand_bounds_every_sampled_safe_return_and_is_reached_near_its_argmax(suite, name):
     p = next(q for q in suite.PROBLEMS if q.name == name)
     best, worst = p.known
@@ -207,3 +208,17 @@ def test_speed_times_alike_decisions_only(suite, monkeypatch):
     monkeypatch.setattr(suite, "SafeBOOptimizer", Drifting)
     with pytest.raises(RuntimeError, match="differ"):
         suite.speed(n=12)
+
+
+def test_clustered_speed_data_look_like_a_run_and_time_in_five_dimensions(suite, monkeypatch):
+    import sys
+
+    p = suite.speed_problem(5)
+    X, s, r = suite.speed_data(p, 40, seed=0, layout="clustered")
+    assert p.name == "cube-5d" and X.shape == (40, 5) and np.array_equal(s, p.safe(X))
+    assert np.all(p.safe(X[:1])) and 4 <= np.sum(~s) <= 8 and np.all(np.isnan(r[~s]))  # the start, ~15 % failures
+    beyond = [float(np.min(np.linalg.norm(p.bounds.to_unit(X[s]) - u, axis=1))) for u in p.bounds.to_unit(X[~s])]
+    assert max(beyond) < 0.5  # failures just outside the set the run explored, not anywhere in the box
+    monkeypatch.setitem(sys.modules, "torch", None)
+    sp = suite.speed(n=40, dim=5, layout="clustered", repeats=2)
+    assert sp["CORL"] > 0 and sp["BoTorch"] is None and "torch" in sp["BoTorch_skip"]
