@@ -583,6 +583,8 @@ def score(p: Problem, truth: Truth, X, s, r) -> dict:
     best = float(np.max(r[ok]))
     fails = X[~s]
     beyond = truth.beyond(p.bounds.to_unit(fails)) if len(fails) else np.zeros(1)
+    if truth.tree is None:  # a truth worked out by hand: the distance is not measured, with or without failures
+        beyond = np.full(1, np.nan)
     return {"found": best >= truth.best - truth.tol, "fail": int(np.sum(~s)), "beyond": float(np.max(beyond)),
             "trials": len(X)}
 
@@ -1042,7 +1044,13 @@ def summarize(records) -> dict:
     n = len(recs)
     found = sum(bool(r["found"]) for r in recs)
     return {"n": n, "found": found, "rate": found / n, "fail": float(np.mean([r["fail"] for r in recs])),
-            "beyond": float(max(r["beyond"] for r in recs)), "trials": float(np.mean([r["trials"] for r in recs]))}
+            "beyond": _largest([r["beyond"] for r in recs]), "trials": float(np.mean([r["trials"] for r in recs]))}
+
+
+def _largest(values) -> float:
+    """The largest of ``values`` that were measured (NaN: not measured); NaN if none was."""
+    v = np.asarray(values, dtype=float)
+    return float(np.max(v[np.isfinite(v)])) if np.isfinite(v).any() else float("nan")
 
 
 def _print_head(head: list[str], markdown: bool, title: str) -> None:

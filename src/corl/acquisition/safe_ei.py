@@ -60,9 +60,7 @@ would otherwise pull every far look back into the known boundary). A failure wel
 point does not count (cosine with the outward normal below ``-far_behind``, 0.25, in g_S's
 length-scale units): a failure at the other end of a narrow safe set says nothing about the side
 the ray explores (in 1-D it closed the far look on the open side: bumps-1d stopped at a local
-peak after 8 trials). When even the far look has nothing, the optimizer may look far again with
-the wider UCB widths of ``far_ladder`` in turn (none by default): a run is unchanged up to where
-it would stop, and then spends more of its budget (docs/safe_bo_suite.md). With ``far_lengthscale``
+peak after 8 trials). With ``far_lengthscale``
 (none by default) the far look sees g_S refitted with that length-scale prior median, a fraction
 of the box (the fit's own: 0.1): its band lies further out, so each far step reaches further into
 untried space (more optima across valleys, a few more failures: docs/safe_bo_suite.md; the
@@ -78,6 +76,9 @@ g_R's prior mean down before the far side is reached).
 
 Glossary
 --------
+settings  : ``p_band``, ``band_rel``, ``far`` (``far_reach = ()`` when off), ``far_beta`` and
+            ``far_lengthscale`` are a user's (:class:`SEIBConfig`); every other name above in lower
+            case is this module's named constant in upper case (``p_inner`` is :data:`P_INNER`)
 mu, var   : mean and latent variance of g_R at candidates, (s,)
 g, g_var  : latent mean and variance of g_S, (s,); ``sf`` its kernel's signal std
 p         : predictive success probability ``E[sigma(g_S)]``, (s,)
@@ -187,7 +188,8 @@ _MOVED = "it is now the named constant corl.acquisition.safe_ei.{} (its reason i
 _REMOVED = {name: _MOVED.format(name.upper()) for name in
             ("p_inner", "xi_rel", "beta", "boundary_weight", "stop_value", "trust_per_dim", "beyond_rel", "ray_open",
              "reach", "far_rel", "far_open", "far_behind")}
-_REMOVED["far_reach"] = "give far=False to never look far (the far look's reach " + _MOVED.format("FAR_REACH") + ")"
+_REMOVED["far_reach"] = ("give far=False to never look far (the far look's reach is the named constant "
+                         "corl.acquisition.safe_ei.FAR_REACH)")
 _REMOVED["far_ladder"] = ("it found 12 more optima in the suite's 840 runs at 6 % more failures, where "
                           "far_lengthscale=0.15 finds 28 more at 4 % more: use far_lengthscale")
 
