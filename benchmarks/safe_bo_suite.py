@@ -332,7 +332,7 @@ PROBLEMS = [
             _sq((0.5, 0.4, -0.3, 0.2, 0.1)), "5-D cube, optimum inside near a corner", known=(0.0, -4.15)),
     Problem("ellipsoid-7d", (-1.0,) * 7, (1.0,) * 7, (-0.2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
             lambda X: np.sum((X / np.array([0.8, 0.7, 0.7, 0.6, 0.6, 0.5, 0.5])) ** 2, axis=1) < 1.0,
-            _sq((0.4, -0.3, 0.2, 0.0, 0.1, 0.0, -0.1)), "7-D ellipsoid, optimum inside",
+            _sq((0.4, -0.3, 0.2, 0.0, 0.1, 0.0, -0.1)), "7-D ellipsoid, optimum inside",  # worst: a bound (-1.73)
             known=(0.0, -(0.8 + np.sqrt(0.31)) ** 2)),
     # batch 12 (issue 25): written before g_S's length scales adapted to a thin safe set and before any change
     # for 5-7 D; held out, run once after them (docs/safe_bo_suite.md, "Thin sets" and "5 to 7 dimensions")

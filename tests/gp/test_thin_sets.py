@@ -38,13 +38,13 @@ def test_the_thin_median_is_the_closest_failure_or_the_successes_spread_by_hand(
     assert got.median == pytest.approx(fitting.THIN_PER_FAILURE * 0.04, rel=1e-9)
     assert got.low == pytest.approx(min(DEFAULT.low, got.median / 3.0), rel=1e-9)
     assert (got.spread, got.high) == (DEFAULT.spread, DEFAULT.high)
-    # three successes on a line 0.01 apart and one across: smallest principal std 0 in 2-D needs 3 points
-    line = np.array([[0.5, 0.5], [0.51, 0.5], [0.52, 0.5], [0.51, 0.506], [0.51, 0.45]])
+    # four successes spread across a strip 0.04 wide, a failure 0.02 past its edge: the spread decides
+    strip = np.array([[0.5, 0.5], [0.52, 0.52], [0.54, 0.5], [0.52, 0.48], [0.52, 0.56]])
     labels = np.array([1.0, 1.0, 1.0, 1.0, -1.0])
-    ok = line[:4]
-    s_min = np.linalg.svd(ok - ok.mean(axis=0), compute_uv=False)[-1] / 2.0
-    expected = max(fitting.THIN_PER_FAILURE * 0.05, fitting.THIN_PER_SPREAD * s_min, fitting.THIN_FLOOR)
-    assert thin_set_prior(line, labels, DEFAULT).median == pytest.approx(expected, rel=1e-9)
+    ok = strip[:4]
+    s_min = np.linalg.svd(ok - ok.mean(axis=0), compute_uv=False)[-1] / 2.0  # sqrt of 4 successes
+    assert fitting.THIN_PER_SPREAD * s_min > fitting.THIN_PER_FAILURE * 0.04  # the branch under test
+    assert thin_set_prior(strip, labels, DEFAULT).median == pytest.approx(fitting.THIN_PER_SPREAD * s_min, rel=1e-9)
     tight = np.array([[0.5, 0.5], [0.5 + 1e-4, 0.5]])  # a failure closer than the floor allows
     assert thin_set_prior(tight, np.array([1.0, -1.0]), DEFAULT).median == fitting.THIN_FLOOR
 
@@ -66,7 +66,7 @@ def test_failures_close_around_the_start_no_longer_make_it_a_fluke():
     assert p_start > 0.7 and 0.0 < radius < 0.02  # ... the thin one keeps it, and its band lies inside the failures
 
 
-def test_on_a_wide_safe_set_the_fit_keeps_the_default_once_the_successes_can_be_weighed():
+def test_on_a_wide_safe_set_with_its_edge_mapped_nothing_says_thin():
     rng = np.random.default_rng(3)
     ok = 0.5 + 0.12 * rng.standard_normal((10, 2))  # a wide safe set around (0.5, 0.5), edge mapped:
     bad = np.array([[0.5, 0.86], [0.87, 0.5], [0.5, 0.13]])  # failures just past it
@@ -95,3 +95,33 @@ def test_on_a_thin_strip_corl_fails_less_and_finds_as_much():
         runs[thin] = (np.mean([r.failures for r in results]), np.mean([r.return_ for r in results]))
     assert runs[True][0] <= 0.6 * runs[False][0], runs  # fewer failures per run (2 against 6 when written) ...
     assert runs[True][1] >= runs[False][1], runs  # ... and a best return at least as high
+
+
+def _cluster_and_failures(n_ok: int):
+    """``n_ok`` successes within 0.004 of (0.3, 0.3) and six failures 0.02 around them (unit square)."""
+    rng = np.random.default_rng(5)
+    ok = 0.3 + 0.004 * rng.uniform(-1.0, 1.0, (n_ok, 2))
+    X, s = _start_and_failures(0.02, 6)
+    return np.vstack([ok, X[1:]]), np.r_[np.ones(n_ok, bool), s[1:]]
+
+
+def test_past_two_successes_the_data_decide_between_the_thin_and_the_wide_fit(monkeypatch):
+    X, s = _cluster_and_failures(4)  # past THIN_EARLY: the two fits are weighed
+    kept = np.exp(fit_classifier(X, s, UNIT2, -7.0, ClassifierPriors()).log_params[:2])
+    assert np.all(kept < DEFAULT.low)  # below the wide prior's bound: the thin fit won the weighing
+    monkeypatch.setattr(fitting, "THIN_ODDS", np.inf)  # a thin set never favoured enough
+    wide = np.exp(fit_classifier(X, s, UNIT2, -7.0, ClassifierPriors()).log_params[:2])
+    assert np.all(wide >= DEFAULT.low)
+    X2, s2 = _cluster_and_failures(2)  # at most THIN_EARLY successes: the thin fit, whatever the odds
+    early = np.exp(fit_classifier(X2, s2, UNIT2, -7.0, ClassifierPriors()).log_params[:2])
+    assert np.all(early < DEFAULT.low)
+
+
+def test_corl_seeds_seib_s_band_from_five_dimensions_only():
+    from corl.acquisition.maximize import MaximizerConfig
+    from corl.optimizers.safe import BAND_SEEDS_FROM_DIM, SafeBOOptimizer
+
+    for m in (BAND_SEEDS_FROM_DIM - 1, BAND_SEEDS_FROM_DIM):
+        opt = SafeBOOptimizer(Bounds(np.zeros(m), np.ones(m)), max_evals=5)
+        want = 0 if m < BAND_SEEDS_FROM_DIM else MaximizerConfig().boundary_pairs
+        assert opt._maximizer.boundary_pairs == want

@@ -176,15 +176,23 @@ class SEIBTuning:
             raise InputError(f"beta (a UCB width) must be finite, got {self.beta}")
         if not np.isfinite(self.stop_value):  # inf would stop before the first look
             raise InputError(f"stop_value must be a finite number >= 0, got {self.stop_value}")
-        if len(self.reach) == 0 or min(self.reach) < 0:
-            raise InputError(f"reach needs at least one distance, all >= 0, got {self.reach}")
         if not -1.0 <= self.far_behind <= 1.0:  # NaN fails too
             raise InputError(f"far_behind is a cosine, in [-1, 1] (1: every failure blocks), got {self.far_behind!r}")
-        if self.far_reach and min(self.far_reach) < 0:
-            raise InputError(f"far_reach needs distances >= 0 (or none: never look far), got {self.far_reach}")
+        for name, least in (("reach", 1), ("far_reach", 0)):  # kept as tuples of floats: hashable, equal when equal
+            object.__setattr__(self, name, _distances(name, getattr(self, name), least))
 
 
-_MOVED = "it is now the named constant corl.acquisition.safe_ei.{} (its reason is beside it)"
+def _distances(name: str, value, least: int) -> tuple[float, ...]:
+    """``value`` as a tuple of at least ``least`` finite distances >= 0 (in length scales), else InputError."""
+    ok = isinstance(value, (tuple, list)) and len(value) >= least and all(
+        _is_number(d) and np.isfinite(d) and d >= 0 for d in value)
+    if not ok:
+        raise InputError(f"SEIBTuning.{name} needs a tuple of finite distances >= 0 in length scales"
+                         f"{' (at least one)' if least else ''}, got {value!r}")
+    return tuple(float(d) for d in value)
+
+
+_MOVED = "it is now fixed: the named constant corl.acquisition.safe_ei.{} (its reason is beside it)"
 _REMOVED = {name: _MOVED.format(name.upper()) for name in
             ("p_inner", "xi_rel", "beta", "boundary_weight", "stop_value", "trust_per_dim", "beyond_rel", "ray_open",
              "reach", "far_rel", "far_open", "far_behind")}
@@ -231,6 +239,10 @@ class SEIBConfig:
         if fl is not None and not (_is_number(fl) and np.isfinite(fl) and fl > 0):
             raise InputError(f"far_lengthscale is g_S's length-scale prior median for the far look, a fraction of the "
                              f"box > 0 (None: the same g_S), got {fl!r}")
+
+    def __repr__(self) -> str:  # the tuning shows only when it is not the default (corl.contexts' refining one)
+        shown = ", ".join(f"{n}={getattr(self, n)!r}" for n in ("p_band", "band_rel", "far", "far_beta", "far_lengthscale"))
+        return f"SEIBConfig({shown}{'' if self._tuning == SEIBTuning() else f', _tuning={self._tuning!r}'})"
 
     # the fixed values, read where SEIB needs them
     p_inner = property(lambda self: self._tuning.p_inner)
@@ -343,7 +355,8 @@ class SEIB:
         """``p - (p_band + p_inner) / 2`` at ``X`` (s, m) -> (s,): zero in the middle of the band.
 
         The maximiser (:func:`corl.acquisition.maximize.maximize`) seeds candidates where this
-        crosses zero in m >= 3 dimensions: there the band is too thin a shell for random points to hit.
+        crosses zero; CORL lets it from 5 dimensions on (``BAND_SEEDS_FROM_DIM`` in
+        :mod:`corl.optimizers.safe`), where the band is too thin a shell for random points to hit.
         """
         g, g_var = self.classifier.predict_latent(X)
         return expected_sigmoid(g, g_var) - 0.5 * (self.config.p_band + self.config.p_inner)

@@ -119,7 +119,7 @@ class SafeBOOptimizer(_BayesOpt):
         self._models = None
         self._far_classifier = None  # (points, g_S refitted for the far look) with far_lengthscale
         self._scale = tuple(float(w) for w in bounds.width) if config.distance_scale is None else config.distance_scale
-        self._maximizer = config.maximizer
+        self._maximizer = config.maximizer  # below BAND_SEEDS_FROM_DIM, without seeds whatever boundary_pairs says
         if bounds.dim < BAND_SEEDS_FROM_DIM:  # the maximiser's Sobol points and refinement find SEIB's band there
             self._maximizer = replace(config.maximizer, boundary_pairs=0)
 
@@ -212,7 +212,8 @@ class SafeBOOptimizer(_BayesOpt):
         if self._far_classifier is None or self._far_classifier[0] != key:
             cfg = self.models.classifier_config
             self.seib.check_classifier(cfg)  # also when ``seib`` was replaced after construction
-            priors = replace(cfg.priors, lengthscale=replace(cfg.priors.lengthscale, median=self.seib.far_lengthscale))
+            priors = replace(cfg.priors, lengthscale=replace(cfg.priors.lengthscale, median=self.seib.far_lengthscale),
+                             thin=False)  # the far look's own prior: a thin fit would undo it
             fit = fit_classifier(self.X_, self.success_, self.bounds, cfg.prior_mean, priors)
             self._far_classifier = (key, _Reuse(fit.model))
         return self._far_classifier[1]
