@@ -326,16 +326,19 @@ def thin_set_prior(U, y, prior: HyperPrior) -> HyperPrior:
     return HyperPrior(median, prior.spread, min(prior.low, median / 3.0), prior.high)
 
 
+def _unit_classifier(v: np.ndarray, prior_mean: float) -> GPClassifier:
+    """An unfitted g_S in the unit box with log hyperparameters ``v = [log l_1..l_m, log sf]``."""
+    return GPClassifier(SquaredExponential(np.exp(v[:-1]), float(np.exp(v[-1]))), prior_mean, warm_start=False)
+
+
 def _classifier_map(U, y, prior_mean: float, v0: np.ndarray, plist: list[HyperPrior], max_iter: int):
-    m = U.shape[1]
-    clf = GPClassifier(SquaredExponential(np.exp(v0[:m]), float(np.exp(v0[m]))), prior_mean, warm_start=False)
+    clf = _unit_classifier(v0, prior_mean)
     return _map_or_medians(lambda: clf.fit(U, y), v0, plist, max_iter)
 
 
 def _log_posterior(U, y, prior_mean: float, v: np.ndarray, plist: list[HyperPrior]) -> float:
     """Laplace log evidence of g_S's data at log hyperparameters ``v`` plus their log prior (-inf if it fails)."""
-    m = U.shape[1]
-    clf = GPClassifier(SquaredExponential(np.exp(v[:m]), float(np.exp(v[m]))), prior_mean, warm_start=False)
+    clf = _unit_classifier(v, prior_mean)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", LaplaceConvergenceWarning)
@@ -383,8 +386,10 @@ def fit_classifier(X, s, bounds, prior_mean: float, priors: ClassifierPriors = C
         reason, v = "all outcomes equal" if y.size else "no data", _medians(plist)
     else:
         v, reason = _classifier_map(U, y, prior_mean, v, plist, priors.max_iter)
-        thin = thin_set_prior(U, y, priors.lengthscale) if priors.thin and lengthscale_priors is None else None
-        if thin is not None and thin is not priors.lengthscale:  # might the safe set be thinner than the prior says?
+        thin = priors.lengthscale  # the caller's own per-dimension priors (lengthscale_priors) are kept as given
+        if priors.thin and lengthscale_priors is None:
+            thin = thin_set_prior(U, y, priors.lengthscale)
+        if thin is not priors.lengthscale:  # might the safe set be thinner than the prior says?
             tlist = [thin] * m + [priors.signal_std]
             start = np.concatenate([_medians(tlist)[:m], v[m:]])
             vt, rt = _classifier_map(U, y, prior_mean, start, tlist, priors.max_iter)
