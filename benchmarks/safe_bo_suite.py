@@ -11,6 +11,24 @@ at most ``--budget`` (40) black-box trials in all. Printed per method and proble
   trials   : trials per run (mean), start included
   ms/it    : mean wall time of one tell + ask (fit both models, maximise)
 
+A real robot is noisy. ``--noise F`` adds Gaussian noise of std F times the return range to every
+reported return, ``--flip Q`` reports each trial's success label wrong with probability Q (a failure
+reported as a success reports the return formula's value there, noised; a success reported as a
+failure reports no return). The start is reported like any trial. The draws come from a generator
+seeded by (``--seed``, problem, start), one normal and one uniform per trial in order, so every
+method meets the same noise at its k-th trial. Every run is also scored against the TRUE R and S,
+and with --noise or --flip the rows show it:
+
+  within5       : runs whose reported best (``opt.best``; BoTorch's and SafeOpt's best reported
+                  success) is truly safe with a TRUE return within 5 % of the range of the optimum
+  true fail/run : truly unsafe trials per run (mean), whatever was reported
+  unsafe best   : runs whose reported best is truly unsafe
+  errors        : runs in which the method raised (the one-line message is in the --json record)
+
+With noise or flips, ``found`` asks whether a truly safe trial's TRUE return came within 2 %, and
+``beyond`` measures the truly unsafe trials; ``fail`` stays the failures reported. Without either
+(the default, or 0), every column is taken from the reported data as it always was.
+
 ``set`` says what each problem was to the design of CORL (SEIB): ``training`` problems were used to
 design it; ``seen`` ones were held out for one change, run once after it, and looked at while
 designing a later one (the look beyond the band, the look far); ``held-out`` ones were written
@@ -21,8 +39,11 @@ numpy < 2: it runs in its own interpreter, ``--safeopt-python`` (a venv with saf
 skipped when there is none. ``--speed`` times one iteration at 100 points in 2-D for CORL and
 BoTorch in this run (the median of ``--speed-repeats``); ``--speed 5x200`` at 200 points of a
 run in 5-D, ``--speed-threads 1,2`` at one and two threads, ``--speed-only`` without the suite.
+``--jobs N`` runs the (problem, method) pairs in N processes: the same numbers, rows printed as they
+finish, the table in order.
 
     OPENBLAS_NUM_THREADS=1 python benchmarks/safe_bo_suite.py --starts 20
+    OPENBLAS_NUM_THREADS=1 python benchmarks/safe_bo_suite.py --starts 20 --noise 0.05 --flip 0.05 --jobs 2
     OPENBLAS_NUM_THREADS=1 python benchmarks/safe_bo_suite.py --speed-only --speed 2x100:uniform 2x100 5x200 \
         --speed-threads 1,2
 """
@@ -30,12 +51,16 @@ run in 5-D, ``--speed-threads 1,2`` at one and two threads, ``--speed-only`` wit
 from __future__ import annotations
 
 import argparse
+import functools
+import importlib.util
 import itertools
 import json
 import os
 import subprocess
 import sys
 import time
+import zlib
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -44,6 +69,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
+from corl.errors import CorlError  # noqa: E402
 from corl.optimizers.base import StopReason  # noqa: E402
 from corl.optimizers.bo import BOConfig, PIBUOptimizer, StopRule  # noqa: E402
 from corl.optimizers.gpconfig import FITTED_CLASSIFIER, FITTED_REGRESSION, ClassifierConfig, RegressionConfig  # noqa: E402
@@ -149,6 +175,14 @@ def _two_peaks(local, top, width: float):  # 0.6 at ``local``, 1 at ``top``: Gau
 def _far_edge_3d(X):  # a local bump near the start, the optimum on the far edge
     bump = 0.8 * np.exp(-np.sum((X - np.array([-1.2, 0.2, 0.0])) ** 2, axis=1) / 0.15)
     return X[:, 0] - 0.3 * (X[:, 1] ** 2 + X[:, 2] ** 2) + bump
+
+
+def _notched_disc(X):  # a disc with a slot cut in from its right side
+    return _ball((0.0, 0.0), 1.6)(X) & ~((X[:, 0] > 0.2) & (np.abs(X[:, 1]) < 0.35))
+
+
+def _plane_and_bump(X):  # a tilted plane and a bump above the notch
+    return 0.4 * X[:, 0] + 0.2 * X[:, 1] + 0.8 * np.exp(-np.sum((X - np.array([0.9, 0.9])) ** 2, axis=1) / 0.3)
 
 
 PROBLEMS = [
@@ -366,6 +400,16 @@ PROBLEMS = [
     Problem("megajoule-5d", (-1.0,) * 5, (1.0,) * 5, (-0.3, 0.0, 0.0, 0.0, 0.0), _ball((0.0,) * 5, 0.85),
             lambda X: 3e6 + 2e5 * _sq((0.5, -0.2, 0.1, 0.0, 0.1))(X), "5-D ball, returns near 3e6 in steps of 2e5",
             role="held-out", known=(3e6, 3e6 - 2e5 * (0.85 + np.sqrt(0.31)) ** 2)),
+    # batch 13 (issue 32): written before any change for noise, run once at the end
+    Problem("disk-2d", (-1.5, -2.5), (3.0, 2.0), (0.3, -1.1), _ball((0.9, -0.6), 1.2), _sq((1.4, 0.3)),
+            "2-D disc off the box's centre, a smooth bowl whose optimum is inside near its edge", role="held-out"),
+    Problem("notch-2d", (-2.0, -2.0), (2.0, 2.0), (-0.9, -0.5), _notched_disc, _plane_and_bump,
+            "2-D disc with a notch cut into its right side (non-convex), a tilted plane plus a bump above the notch",
+            role="held-out"),
+    Problem("orb-5d", (-1.0,) * 5, (1.0,) * 5, (-0.2, -0.1, 0.0, 0.1, 0.0),
+            _ball((0.1, -0.1, 0.0, 0.1, 0.0), 0.75), _sq((0.35, 0.1, -0.2, 0.2, -0.1)),
+            "5-D ball off the box's centre, optimum inside", role="held-out",
+            known=(0.0, -(0.75 + np.sqrt(0.1625)) ** 2)),  # |optimum - centre|^2 = 0.1625: worst on the far side
 ]
 
 _GRID = {1: 20001, 2: 401, 3: 71, 4: 29}
@@ -373,11 +417,20 @@ _GRID = {1: 20001, 2: 401, 3: 71, 4: 29}
 
 @dataclass
 class Truth:
-    """Dense-grid facts of a problem: optimum, found threshold and a distance-to-safe-set query."""
+    """Dense-grid facts of a problem: optimum, return range, found threshold and a distance-to-safe-set query.
+
+    ``best`` and ``range`` are the highest R and max R - min R in the start's connected safe
+    component (worked out by hand for a problem with ``known``).
+    """
 
     best: float
-    tol: float
+    range: float
     tree: object
+
+    @property
+    def tol(self) -> float:
+        """How close to ``best`` a return must come to count as found: 2 % of the range."""
+        return 0.02 * self.range
 
     def beyond(self, U: np.ndarray) -> np.ndarray:
         if self.tree is None:  # a problem whose truth was worked out by hand: not measured
@@ -393,7 +446,7 @@ def truth_of(p: Problem) -> Truth:
     if p.known is not None:  # worked out by hand; no grid of the safe set to measure ``beyond`` on
         best, worst = map(float, p.known)
         assert p.safe(np.array(p.start, float)[None])[0], f"start of {p.name} is not safe"
-        return Truth(best, 0.02 * (best - worst), None)
+        return Truth(best, best - worst, None)
     n = _GRID[m]
     axes = [np.linspace(0.0, 1.0, n)] * m
     U = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, m)
@@ -404,7 +457,7 @@ def truth_of(p: Problem) -> Truth:
     comp = labels.reshape(-1) == labels[start_idx]
     assert labels[start_idx] > 0, f"start of {p.name} is not safe"
     R = p.ret(X[comp])
-    return Truth(float(R.max()), 0.02 * float(R.max() - R.min()), cKDTree(U[safe]))
+    return Truth(float(R.max()), float(R.max() - R.min()), cKDTree(U[safe]))
 
 
 def rollout(p: Problem, x: np.ndarray) -> Outcome:
@@ -412,6 +465,35 @@ def rollout(p: Problem, x: np.ndarray) -> Outcome:
     if bool(p.safe(x)[0]):
         return Outcome(True, float(p.ret(x)[0]))
     return Outcome(False, None)
+
+
+class Sensor:
+    """What a noisy robot reports of a trial (``--noise``, ``--flip``): a rollout with noise and flipped labels.
+
+    Each call draws one standard normal ``z`` and one uniform ``u`` from ``rng``, whatever the point,
+    so the k-th trial of every method meets the same draws. The label is flipped when ``u < flip``;
+    a reported success reports ``p.ret(x) + noise_std * z`` (the formula's value also where the
+    point is truly unsafe), a reported failure no return. With ``noise_std = flip = 0`` it reports
+    what :func:`rollout` does, to the bit.
+    """
+
+    def __init__(self, p: Problem, noise_std: float, flip: float, rng: np.random.Generator) -> None:
+        self.p, self.noise_std, self.flip, self.rng = p, float(noise_std), float(flip), rng
+
+    @classmethod
+    def of_run(cls, p: Problem, truth: Truth, noise: float, flip: float, seed: int, start: int) -> Sensor:
+        """The sensor of start number ``start`` of ``p``: noise std ``noise * truth.range``, draws seeded by
+        (seed, p's name, start), so the same for every method."""
+        rng = np.random.default_rng([seed, zlib.crc32(p.name.encode()), start])
+        return cls(p, noise * truth.range, flip, rng)
+
+    def __call__(self, x: np.ndarray) -> Outcome:
+        z, u = self.rng.standard_normal(), self.rng.random()
+        x = np.asarray(x, float).reshape(1, -1)
+        if bool(self.p.safe(x)[0]) == (u < self.flip):  # truly safe and flipped, or truly unsafe and not
+            return Outcome(False, None)
+        r = float(self.p.ret(x)[0])
+        return Outcome(True, r + self.noise_std * z if self.noise_std else r)
 
 
 def starts_of(p: Problem, k: int, seed: int) -> np.ndarray:
@@ -427,45 +509,86 @@ def starts_of(p: Problem, k: int, seed: int) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------------
-# Methods: each returns (X (t, m), success (t,), returns (t,), ms per ask)
+# Methods: each runner(p, start, budget, seed, sense) returns a Run; ``sense(x)`` is the rollout
 # ---------------------------------------------------------------------------------------------
-def _drive(opt, p: Problem, start: np.ndarray, budget: int):
-    t0 = time.perf_counter()
-    opt.tell(start, rollout(p, start))  # the stopping contract: tell fits and proposes, ask returns it
-    times = []
-    while not opt.done and opt.n_evals < budget:
-        x = opt.ask()  # never raises before done: the stopping contract
-        times.append(time.perf_counter() - t0)
-        o = rollout(p, x)
+@dataclass
+class Run:
+    """One run as the method was told it: trials ``X`` (t, m), ``success`` (t,) and ``returns`` (t,)
+    (NaN where none was reported) as reported, mean ms per tell + ask, the method's reported best
+    ``(theta (m,), value)`` or None, and the one-line message of what it raised (None: it did not)."""
+
+    X: np.ndarray
+    success: np.ndarray
+    returns: np.ndarray
+    ms: float
+    best: tuple | None
+    error: str | None = None
+
+
+def _one_line(exc: BaseException) -> str:
+    """An exception as one line: corl's own messages as they are, others behind their type."""
+    text = " ".join(str(exc).split())
+    return (text if isinstance(exc, CorlError) and text else f"{type(exc).__name__}: {text}")[:300]
+
+
+def _best_reported(X, s, r) -> tuple | None:
+    """The reported success with the highest reported return, as ``(theta, value)``, or None."""
+    ok = s & np.isfinite(r)
+    if not np.any(ok):
+        return None
+    k = np.flatnonzero(ok)[np.argmax(r[ok])]
+    return X[k].copy(), float(r[k])
+
+
+def _drive(opt, sense, start: np.ndarray, budget: int) -> Run:
+    """Tell ``opt`` the start, then ask and tell until it is done or ``budget`` trials are spent.
+
+    What it raises ends the run, which keeps its trials so far and the message (``Run.error``).
+    """
+    times, error = [], None
+    try:
         t0 = time.perf_counter()
-        opt.tell(x, o)
-    return opt.X_, opt.success_, opt.returns_, 1e3 * float(np.mean(times)) if times else 0.0
+        opt.tell(start, sense(start))  # the stopping contract: tell fits and proposes, ask returns it
+        while not opt.done and opt.n_evals < budget:
+            x = opt.ask()  # never raises before done: the stopping contract
+            times.append(time.perf_counter() - t0)
+            o = sense(x)
+            t0 = time.perf_counter()
+            opt.tell(x, o)
+    except Exception as exc:  # noqa: BLE001 -- a method that raises is scored (errors), the suite goes on
+        error = _one_line(exc)
+    try:
+        best = opt.best
+    except Exception as exc:  # noqa: BLE001 -- a best that cannot be read counts as an error too
+        best, error = None, error or _one_line(exc)
+    ms = 1e3 * float(np.mean(times)) if times else 0.0
+    return Run(opt.X_, opt.success_, opt.returns_, ms, best, error)
 
 
-def run_corl(p, start, budget, seed):
-    return _drive(SafeBOOptimizer(p.bounds, max_evals=budget, seed=seed), p, start, budget)
+def run_corl(p, start, budget, seed, sense):
+    return _drive(SafeBOOptimizer(p.bounds, max_evals=budget, seed=seed), sense, start, budget)
 
 
-def run_corl_budget(p, start, budget, seed):  # CORL(budget): spends every trial, never below the band
-    return _drive(SafeBOOptimizer(p.bounds, max_evals=budget, seed=seed, spend_budget=True), p, start, budget)
+def run_corl_budget(p, start, budget, seed, sense):  # CORL(budget): spends every trial, never below the band
+    return _drive(SafeBOOptimizer(p.bounds, max_evals=budget, seed=seed, spend_budget=True), sense, start, budget)
 
 
-def run_pibu_budget(p, start, budget, seed):  # PIBU(budget): fitted GPs, no stopping rule
+def run_pibu_budget(p, start, budget, seed, sense):  # PIBU(budget): fitted GPs, no stopping rule
     cfg = BOConfig(FITTED_REGRESSION, FITTED_CLASSIFIER, stop_rule=StopRule.BUDGET, distance_scale=tuple(p.bounds.width))
-    return _drive(PIBUOptimizer(p.bounds, cfg, max_evals=budget, seed=seed), p, start, budget)
+    return _drive(PIBUOptimizer(p.bounds, cfg, max_evals=budget, seed=seed), sense, start, budget)
 
 
-def run_pibu(p, start, budget, seed):  # PIBU as a user gets it now: GPs fitted from the data
+def run_pibu(p, start, budget, seed, sense):  # PIBU as a user gets it now: GPs fitted from the data
     cfg = BOConfig(FITTED_REGRESSION, FITTED_CLASSIFIER, distance_scale=tuple(p.bounds.width))
-    return _drive(PIBUOptimizer(p.bounds, cfg, max_evals=budget, seed=seed), p, start, budget)
+    return _drive(PIBUOptimizer(p.bounds, cfg, max_evals=budget, seed=seed), sense, start, budget)
 
 
-def run_pibu_tenth(p, start, budget, seed):  # the issue's baseline: l = box / 10, paper sf and noise
+def run_pibu_tenth(p, start, budget, seed, sense):  # the issue's baseline: l = box / 10, paper sf and noise
     ls = tuple(0.1 * p.bounds.width)
     cfg = BOConfig(RegressionConfig(lengthscale=ls, signal_std=10.0, noise_std=0.11),
                    ClassifierConfig(lengthscale=ls, signal_std=10.0),
                    distance_scale=tuple(p.bounds.width))
-    return _drive(PIBUOptimizer(p.bounds, cfg, max_evals=budget, seed=seed), p, start, budget)
+    return _drive(PIBUOptimizer(p.bounds, cfg, max_evals=budget, seed=seed), sense, start, budget)
 
 
 def botorch_step(b: Bounds, X, s, r, seed: int):
@@ -499,16 +622,41 @@ def botorch_step(b: Bounds, X, s, r, seed: int):
     return b.from_unit(cand.detach().numpy().reshape(m))
 
 
-def run_botorch(p, start, budget, seed):
-    b = p.bounds
-    X, s, r, times = [np.array(start)], [True], [float(p.ret(np.array(start)[None])[0])], []
-    while len(X) < budget:
-        t0 = time.perf_counter()
-        x = botorch_step(b, np.array(X), np.array(s), np.array(r), seed + len(X))
-        times.append(time.perf_counter() - t0)
-        o = rollout(p, x)
-        X.append(x), s.append(o.success), r.append(np.nan if o.return_ is None else o.return_)
-    return np.array(X), np.array(s), np.array(r), 1e3 * float(np.mean(times))
+class BoTorchLogEI:
+    """:func:`botorch_step` behind ask/tell, so :func:`_drive` runs it as it runs corl's methods.
+
+    It spends the whole budget; its reported best is its best reported success.
+    """
+
+    def __init__(self, bounds: Bounds, budget: int, seed: int) -> None:
+        self.bounds, self.budget, self.seed = bounds, budget, seed
+        self.X_, self.success_, self.returns_ = np.empty((0, bounds.dim)), np.empty(0, bool), np.empty(0)
+
+    def tell(self, x, outcome: Outcome) -> None:
+        self.X_ = np.vstack([self.X_, np.asarray(x, float)])
+        self.success_ = np.append(self.success_, outcome.success)
+        self.returns_ = np.append(self.returns_, np.nan if outcome.return_ is None else outcome.return_)
+
+    def ask(self) -> np.ndarray:
+        if not self.success_.any():
+            raise RuntimeError("constrained LogEI needs a reported success for its incumbent; none was reported")
+        return botorch_step(self.bounds, self.X_, self.success_, self.returns_, self.seed + self.n_evals)
+
+    @property
+    def done(self) -> bool:
+        return self.n_evals >= self.budget
+
+    @property
+    def n_evals(self) -> int:
+        return len(self.X_)
+
+    @property
+    def best(self) -> tuple | None:
+        return _best_reported(self.X_, self.success_, self.returns_)
+
+
+def run_botorch(p, start, budget, seed, sense):
+    return _drive(BoTorchLogEI(p.bounds, budget, seed), sense, start, budget)
 
 
 _SAFEOPT_WORKER = r'''
@@ -553,21 +701,25 @@ def make_safeopt_runner(python: str):
     proc = subprocess.Popen([python, "-c", _SAFEOPT_WORKER], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                             text=True, env={**os.environ, "OPENBLAS_NUM_THREADS": "1"})
 
-    def run(p, start, budget, seed):
+    def run(p, start, budget, seed, sense):
         b = p.bounds
         u0 = b.to_unit(np.array(start))
-        r0 = float(p.ret(np.array(start)[None])[0])
+        o0 = sense(np.array(start))
+        X, s, r = [np.array(start)], [o0.success], [np.nan if o0.return_ is None else o0.return_]
+        if not o0.success:  # its safe seed: SafeOpt cannot begin from a start reported as a failure
+            return Run(np.array(X), np.array(s), np.array(r), 0.0, None,
+                       "SafeOpt needs its start to succeed (its safe seed); the start was reported as a failure")
         grid = {1: 200, 2: 40, 3: 12, 4: 7}[b.dim]  # SafeOpt scores every grid point per expander
-        proc.stdin.write(json.dumps({"m": b.dim, "budget": budget, "start": u0.tolist(), "r0": r0,
+        proc.stdin.write(json.dumps({"m": b.dim, "budget": budget, "start": u0.tolist(), "r0": o0.return_,
                                      "grid": grid}) + "\n")
         proc.stdin.flush()
-        X, s, r = [np.array(start)], [True], [r0]
         while True:
             msg = json.loads(proc.stdout.readline())
             if "done" in msg:
-                return np.array(X), np.array(s), np.array(r), msg["ms"]
+                X, s, r = np.array(X), np.array(s), np.array(r)
+                return Run(X, s, r, msg["ms"], _best_reported(X, s, r))
             x = b.from_unit(np.array(msg["x"]))
-            o = rollout(p, x)
+            o = sense(x)
             X.append(x), s.append(o.success), r.append(np.nan if o.return_ is None else o.return_)
             proc.stdin.write(json.dumps({"ok": o.success, "r": o.return_}) + "\n")
             proc.stdin.flush()
@@ -576,17 +728,110 @@ def make_safeopt_runner(python: str):
 
 
 # ---------------------------------------------------------------------------------------------
+# The runs: one task per (problem, method), in this process or in --jobs processes
+# ---------------------------------------------------------------------------------------------
+_RUNNERS = {"CORL": run_corl, "PIBU": run_pibu, "PIBU(l=w/10)": run_pibu_tenth, "CORL(budget)": run_corl_budget,
+            "PIBU(budget)": run_pibu_budget, "BoTorch": run_botorch}
+_SAFEOPT: dict[str, Callable] = {}  # interpreter -> runner: one SafeOpt process per process of the suite
+
+
+@dataclass(frozen=True)
+class Task:
+    """The runs of one method on one problem: starts ``first`` to ``last - 1`` of ``starts_of(p, count, seed)``.
+
+    ``noise`` and ``flip``: the :class:`Sensor`'s levels (0, 0: a clean run); ``safeopt_python``:
+    the interpreter SafeOpt runs in.
+    """
+
+    problem: str
+    method: str
+    count: int
+    first: int
+    last: int
+    budget: int
+    seed: int
+    noise: float = 0.0
+    flip: float = 0.0
+    safeopt_python: str | None = None
+
+
+def problem_named(name: str) -> Problem:
+    return next(p for p in PROBLEMS if p.name == name)
+
+
+@functools.lru_cache(maxsize=4)  # tasks come problem by problem: a grid is taken once per problem and process
+def _truth(name: str) -> Truth:
+    return truth_of(problem_named(name))
+
+
+def _runner(method: str, safeopt_python: str | None) -> Callable:
+    if method != "SafeOpt":
+        return _RUNNERS[method]
+    if safeopt_python not in _SAFEOPT:
+        _SAFEOPT[safeopt_python] = make_safeopt_runner(safeopt_python)
+    return _SAFEOPT[safeopt_python]
+
+
+def run_task(task: Task) -> list[dict]:
+    """The ``--json`` record of each run of ``task``, scored by :func:`score` (clean: no noise, no flip)."""
+    p, truth = problem_named(task.problem), _truth(task.problem)
+    runner = _runner(task.method, task.safeopt_python)
+    clean = task.noise == 0 and task.flip == 0
+    records = []
+    for i, x0 in list(enumerate(starts_of(p, task.count, task.seed)))[task.first:task.last]:
+        sense = Sensor.of_run(p, truth, task.noise, task.flip, task.seed, i)
+        try:
+            run = runner(p, x0, task.budget, task.seed + i, sense)
+        except Exception as exc:  # noqa: BLE001 -- raised before any trial (a constructor, SafeOpt's process)
+            run = Run(np.empty((0, p.bounds.dim)), np.empty(0, bool), np.empty(0), 0.0, None, _one_line(exc))
+        records.append({"problem": p.name, "method": task.method, "start": i, **score(p, truth, run, clean),
+                        "ms": run.ms, "noise": task.noise, "flip": task.flip})
+    return records
+
+
+def run_tasks(tasks: list[Task], jobs: int = 1):
+    """``(task, records)`` as each task finishes: in order here for ``jobs`` 1, else from ``jobs`` processes.
+
+    A task's numbers depend on nothing but the task (its seeds, its sensor), so they are the same either way.
+    """
+    if jobs == 1:
+        for task in tasks:
+            yield task, run_task(task)
+        return
+    with ProcessPoolExecutor(jobs) as pool:
+        futures = {pool.submit(run_task, task): task for task in tasks}
+        for done in as_completed(futures):
+            yield futures[done], done.result()
+
+
+# ---------------------------------------------------------------------------------------------
 # The table
 # ---------------------------------------------------------------------------------------------
-def score(p: Problem, truth: Truth, X, s, r) -> dict:
-    ok = s & np.isfinite(r)
-    best = float(np.max(r[ok]))
-    fails = X[~s]
+def score(p: Problem, truth: Truth, run: Run, clean: bool = True) -> dict:
+    """One run's record: found, fail, beyond, trials, and the TRUE scores within5, true_fail, unsafe_best, error.
+
+    ``clean`` (no noise, no flip): found and beyond from the reported data, as always. Otherwise
+    found asks whether a truly safe trial's TRUE return came within 2 % of the range of the
+    optimum, and beyond measures the truly unsafe trials. ``fail`` is always the failures reported.
+    """
+    X, s, r = run.X, run.success, run.returns
+    safe = p.safe(X) if len(X) else np.zeros(0, bool)  # the TRUE S of every trial
+    if clean:
+        ok, value, unsafe = s & np.isfinite(r), r, ~s
+    else:
+        ok, value, unsafe = safe, (p.ret(X) if len(X) else np.zeros(0)), ~safe
+    fails = X[unsafe]
     beyond = truth.beyond(p.bounds.to_unit(fails)) if len(fails) else np.zeros(1)
     if truth.tree is None:  # a truth worked out by hand: the distance is not measured, with or without failures
         beyond = np.full(1, np.nan)
-    return {"found": best >= truth.best - truth.tol, "fail": int(np.sum(~s)), "beyond": float(np.max(beyond)),
-            "trials": len(X)}
+    found = bool(ok.any()) and float(np.max(value[ok])) >= truth.best - truth.tol
+    within5 = unsafe_best = False  # the reported best, judged by the TRUE S and R (nothing reported: neither)
+    if run.best is not None:
+        theta = np.asarray(run.best[0], float).reshape(1, -1)
+        unsafe_best = not bool(p.safe(theta)[0])
+        within5 = not unsafe_best and float(p.ret(theta)[0]) >= truth.best - 0.05 * truth.range
+    return {"found": found, "fail": int(np.sum(~s)), "beyond": float(np.max(beyond)), "trials": len(X),
+            "within5": within5, "true_fail": int(np.sum(~safe)), "unsafe_best": unsafe_best, "error": run.error}
 
 
 _SPEED_LAYOUTS = ("uniform", "clustered")
@@ -863,6 +1108,14 @@ def main(argv=None) -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--methods", default="CORL,PIBU,PIBU(l=w/10),BoTorch,SafeOpt")
     ap.add_argument("--problems", default=None, help="comma-separated names (default all)")
+    ap.add_argument("--noise", type=float, default=None, metavar="F",
+                    help="report every success's return with Gaussian noise of std F times the problem's return "
+                         "range, and score against the TRUE R and S (default: no noise)")
+    ap.add_argument("--flip", type=float, default=None, metavar="Q",
+                    help="report each trial's success label wrong with probability Q, and score against the TRUE "
+                         "R and S (default: no flip)")
+    ap.add_argument("--jobs", type=int, default=1, metavar="N",
+                    help="run the (problem, method) pairs in N processes (the same numbers as one)")
     local = Path(__file__).resolve().parents[1] / ".venv-safeopt" / "bin" / "python"
     ap.add_argument("--safeopt-python", default=os.environ.get("CORL_SAFEOPT_PYTHON", str(local)),
                     help="an interpreter with safeopt installed (default $CORL_SAFEOPT_PYTHON)")
@@ -926,41 +1179,42 @@ def main(argv=None) -> None:
         (print_verdict if args.verdict else print_table)(args.table, args.budget, markdown=args.markdown)
         return
 
-    runners = {"CORL": run_corl, "PIBU": run_pibu, "PIBU(l=w/10)": run_pibu_tenth, "CORL(budget)": run_corl_budget,
-               "PIBU(budget)": run_pibu_budget}
+    noise, flip = args.noise or 0.0, args.flip or 0.0
+    if not (0.0 <= noise < np.inf and 0.0 <= flip <= 1.0) or args.jobs < 1:
+        ap.error(f"--noise must be a finite share >= 0 (got {noise}), --flip a probability in [0, 1] (got {flip}) "
+                 f"and --jobs at least 1 (got {args.jobs})")
+    levels = [(noise, flip)] if args.noise is not None or args.flip is not None else None  # rows with the TRUE scores
     wanted = [m.strip() for m in args.methods.split(",") if m.strip()]
+    available = set(_RUNNERS) - {"BoTorch"}
     if "BoTorch" in wanted:
-        try:
-            import botorch  # noqa: F401
-            runners["BoTorch"] = run_botorch
-        except ImportError:
+        if importlib.util.find_spec("botorch") is not None:  # not imported here: --jobs forks this process
+            available.add("BoTorch")
+        else:
             print("BoTorch: not installed (pip install 'corl[bench]'), skipped")
     if "SafeOpt" in wanted:
         if args.safeopt_python and Path(args.safeopt_python).exists():
-            runners["SafeOpt"] = make_safeopt_runner(args.safeopt_python)
+            available.add("SafeOpt")
         else:
             print("SafeOpt: no interpreter with safeopt (--safeopt-python), skipped")
-    methods = [m for m in wanted if m in runners]
+    methods = [m for m in wanted if m in available]
     problems = [p for p in PROBLEMS if args.problems is None or p.name in args.problems.split(",")]
 
-    rows, records = [], []
+    tasks = []
     for p in problems:
-        truth = truth_of(p)
         for name in methods:
             k = args.starts if name in CORL_METHODS or args.peer_starts is None else args.peer_starts
-            runs, ms = [], []
             first, last = (0, k) if args.start_range is None else map(int, args.start_range.split(":"))
-            for i, x0 in list(enumerate(starts_of(p, max(k, last), args.seed)))[first:last]:
-                X, s, r, t = runners[name](p, x0, args.budget, args.seed + i)
-                runs.append(score(p, truth, X, s, r))
-                ms.append(t)
-                records.append({"problem": p.name, "method": name, "start": i, **runs[-1], "ms": t})
-            rows.append((p, name, runs, float(np.mean(ms))))
-            print(_row(p, name, runs, float(np.mean(ms))), flush=True)
+            tasks.append(Task(p.name, name, max(k, last), first, last, args.budget, args.seed, noise, flip,
+                              args.safeopt_python if name == "SafeOpt" else None))
+    done = {}
+    for task, recs in run_tasks(tasks, args.jobs):
+        done[task] = recs
+        print(_row(problem_named(task.problem), task.method, recs, levels is not None), flush=True)
     print()
-    print(_table_title(args.budget))
-    for p, name, runs, ms in rows:
-        print(_row(p, name, runs, ms))
+    print(_table_title(args.budget, levels))
+    for task in tasks:
+        print(_row(problem_named(task.problem), task.method, done[task], levels is not None))
+    records = [rec for task in tasks for rec in done[task]]
     if args.speed is not None:
         _report_speed(speed_cases, speed_threads, args.speed_repeats, args.seed)
     if args.json:
@@ -1005,6 +1259,7 @@ def load_runs(paths) -> dict:
     runs: dict = {}
     names = {p.name for p in PROBLEMS}
     source: dict[str, tuple[bool, str]] = {}  # name -> (a label?, the first file naming it)
+    levels: dict[tuple, tuple] = {}  # (problem, name) -> ((noise, flip), the first file with it): one level each
     for arg in paths:
         label, path = _labelled(arg)
         try:
@@ -1027,7 +1282,12 @@ def load_runs(paths) -> dict:
                 if first != here and (here[0] or first[0]):
                     raise ValueError(f"{m!r} names runs of {first[1]} too; give another label")
             for rec in recs:
-                runs.setdefault((rec["problem"], label or rec["method"]), {})[rec["start"]] = rec
+                key = (rec["problem"], label or rec["method"])
+                level = levels.setdefault(key, (_level(rec), path))
+                if level[0] != _level(rec):
+                    raise ValueError(f"{key[1]!r} on {key[0]} has runs at (noise, flip) {level[0]} in {level[1]} and "
+                                     f"{_level(rec)} here; give one file a label (LABEL=FILE)")
+                runs.setdefault(key, {})[rec["start"]] = rec
         except (OSError, ValueError, TypeError, KeyError) as exc:
             print(f"safe_bo_suite: cannot read runs from {path} ({type(exc).__name__}: {exc}); "
                   "give files written by --json", file=sys.stderr)
@@ -1035,16 +1295,29 @@ def load_runs(paths) -> dict:
     return runs
 
 
-_RECORD_KEYS = ("problem", "method", "start", "found", "fail", "beyond", "trials", "ms")
+_RECORD_KEYS = ("problem", "method", "start", "found", "fail", "beyond", "trials", "ms")  # files before issue 32 too
+
+
+def _level(rec: dict) -> tuple[float, float]:
+    """A saved run's (noise, flip); (0, 0) for a run saved before they were."""
+    return float(rec.get("noise", 0.0)), float(rec.get("flip", 0.0))
 
 
 def summarize(records) -> dict:
-    """n, found (count and rate), failures per run, farthest failure and trials per run of some runs."""
+    """n, found (count and rate), failures per run, farthest failure, trials per run and ms per iteration of
+    some runs; and their TRUE scores: ``within5`` and ``unsafe_best`` (counts), ``true_fail`` (per run),
+    each None when a run saved before them lacks it, and ``errors`` (runs that raised)."""
     recs = list(records)
     n = len(recs)
     found = sum(bool(r["found"]) for r in recs)
+    have = {k: all(k in r for r in recs) for k in ("within5", "true_fail", "unsafe_best")}
     return {"n": n, "found": found, "rate": found / n, "fail": float(np.mean([r["fail"] for r in recs])),
-            "beyond": _largest([r["beyond"] for r in recs]), "trials": float(np.mean([r["trials"] for r in recs]))}
+            "beyond": _largest([r["beyond"] for r in recs]), "trials": float(np.mean([r["trials"] for r in recs])),
+            "ms": float(np.mean([r["ms"] for r in recs])),
+            "within5": sum(bool(r["within5"]) for r in recs) if have["within5"] else None,
+            "true_fail": float(np.mean([r["true_fail"] for r in recs])) if have["true_fail"] else None,
+            "unsafe_best": sum(bool(r["unsafe_best"]) for r in recs) if have["unsafe_best"] else None,
+            "errors": sum(bool(r.get("error")) for r in recs)}
 
 
 def _largest(values) -> float:
@@ -1071,13 +1344,15 @@ def print_table(paths, budget: int = 40, markdown: bool = False) -> None:
     runs = load_runs(paths)
     order = {p.name: k for k, p in enumerate(PROBLEMS)}
     by_name = {p.name: p for p in PROBLEMS}
-    _print_head(["problem", "set", "method", "found", "failures", "beyond", "trials", "ms/it"], markdown,
-                _table_title(budget))
+    levels = sorted({_level(r) for recs in runs.values() for r in recs.values()})
+    true_scores = levels != [(0.0, 0.0)]  # some runs were noisy: show the TRUE scores
+    heads = ["problem", "set", "method", "found", "failures", "beyond", "trials"]
+    _print_head(heads + (_TRUE_HEADS if true_scores else []) + ["ms/it"], markdown,
+                _table_title(budget, levels if true_scores else None))
     methods = ["CORL", *PEERS]
     rank = {m: k for k, m in enumerate(methods)}
     for prob, name in sorted(runs, key=lambda k: (order.get(k[0], len(order)), rank.get(k[1], len(rank)), k[1])):
-        recs = list(runs[(prob, name)].values())
-        row = _row(by_name[prob], name, recs, float(np.mean([r["ms"] for r in recs])))
+        row = _row(by_name[prob], name, list(runs[(prob, name)].values()), true_scores)
         print("| " + " | ".join(row.split()) + " |" if markdown else row)
 
 
@@ -1206,17 +1481,39 @@ def plot_trade_off(paths, out: str, budget: int = 40, markdown: bool = False) ->
     print(f"\nwritten: {out}")
 
 
-def _table_title(budget: int) -> str:
-    """The plain-text table's title and column heads (rows: :func:`_row`)."""
-    return (f"Safe BO suite: {budget} trials, start told first; found = within 2 % of the return range\n"
+_TRUE_HEADS = ["within 5 %", "true fail/run", "unsafe best", "errors"]  # the columns of the TRUE scores
+
+
+def _table_title(budget: int, levels=None) -> str:
+    """The plain-text table's title and column heads (rows: :func:`_row`).
+
+    ``levels``: the (noise, flip) levels of the runs shown, for a table with the TRUE scores; None: without them.
+    """
+    if levels is None:
+        return (f"Safe BO suite: {budget} trials, start told first; found = within 2 % of the return range\n"
+                f"{'problem':<14} {'set':<9} {'method':<13} {'found':>7} {'fail':>6} {'beyond':>7} {'trials':>7} "
+                f"{'ms/it':>8}\n" + "-" * 78)
+    noisy = "; ".join(f"noise {n:g} x the return range, flip {q:g}" for n, q in levels)
+    return (f"Safe BO suite: {budget} trials, start told first; {noisy}\nscored on the TRUE R and S: found = a "
+            "truly safe trial within 2 % of the return range, within5 = the reported best truly safe and within 5 %\n"
             f"{'problem':<14} {'set':<9} {'method':<13} {'found':>7} {'fail':>6} {'beyond':>7} {'trials':>7} "
-            f"{'ms/it':>8}\n" + "-" * 78)
+            f"{'within5':>7} {'true fail/run':>13} {'unsafe best':>11} {'errors':>6} {'ms/it':>8}\n" + "-" * 120)
 
 
-def _row(p, name, runs, ms) -> str:
+def _row(p, name, runs, true_scores: bool = False) -> str:
+    """One row of the table: :func:`summarize` of ``runs``, with the TRUE scores' columns when ``true_scores``."""
     s = summarize(runs)
-    return (f"{p.name:<14} {p.role:<9} {name:<13} {s['found']:>3}/{s['n']:<3} {s['fail']:>6.1f} {s['beyond']:>7.3f} "
-            f"{s['trials']:>7.1f} {ms:>8.1f}")
+    row = (f"{p.name:<14} {p.role:<9} {name:<13} {s['found']:>3}/{s['n']:<3} {s['fail']:>6.1f} {s['beyond']:>7.3f} "
+           f"{s['trials']:>7.1f}")
+    if true_scores:  # "-": runs saved before the TRUE scores were
+        within5, unsafe = (_share(s[k], s["n"]) for k in ("within5", "unsafe_best"))
+        true_fail = "-" if s["true_fail"] is None else f"{s['true_fail']:.1f}"
+        row += f" {within5:>7} {true_fail:>13} {unsafe:>11} {s['errors']:>6}"
+    return row + f" {s['ms']:>8.1f}"
+
+
+def _share(k: int | None, n: int) -> str:
+    return "-" if k is None else f"{k:>3}/{n:<3}"
 
 
 if __name__ == "__main__":

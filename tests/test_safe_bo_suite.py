@@ -1,4 +1,5 @@
-"""benchmarks/safe_bo_suite.py: its problems are what they claim, a split run merges into one table."""
+"""benchmarks/safe_bo_suite.py: its problems are what they claim, a split run merges into one table, a noisy
+run is scored on the true S and R."""
 
 from __future__ import annotations
 
@@ -30,7 +31,7 @@ def test_every_problem_has_safe_starts_in_the_box_and_an_optimum_above_them(suit
 
 
 @pytest.mark.parametrize("name", ["thin-ring-2d", "zigzag-2d", "slit-3d", "ball-5d", "cap-6d", "edge-7d", "sphere-6d",
-                                  "cube-5d", "ellipsoid-7d", "megajoule-5d"])
+                                  "cube-5d", "ellipsoid-7d", "megajoule-5d", "orb-5d"])
 def test_a_truth_worked_out_by_hand_bounds_every_sampled_safe_return_and_is_reached_near_its_argmax(suite, name):
     p = next(q for q in suite.PROBLEMS if q.name == name)
     best, worst = p.known
@@ -222,3 +223,99 @@ def test_clustered_speed_data_look_like_a_run_and_time_in_five_dimensions(suite,
     monkeypatch.setitem(sys.modules, "torch", None)
     sp = suite.speed(n=40, dim=5, layout="clustered", repeats=2)
     assert sp["CORL"] > 0 and sp["BoTorch"] is None and "torch" in sp["BoTorch_skip"]
+
+
+class _Asks:
+    """A stand-in optimizer: asks ``points`` in turn and reports the last point it was told as its best."""
+
+    def __init__(self, *points):
+        self.points = [np.atleast_1d(np.asarray(x, float)) for x in points]
+        self.X_, self.success_, self.returns_ = np.empty((0, self.points[0].size)), np.empty(0, bool), np.empty(0)
+
+    def tell(self, x, o):
+        self.X_ = np.vstack([self.X_, x])
+        self.success_ = np.append(self.success_, o.success)
+        self.returns_ = np.append(self.returns_, np.nan if o.return_ is None else o.return_)
+
+    def ask(self):
+        return self.points[self.n_evals - 1]
+
+    done = property(lambda self: self.n_evals > len(self.points))
+    n_evals = property(lambda self: len(self.X_))
+    best = property(lambda self: (self.X_[-1], self.returns_[-1]))
+
+
+def test_a_noisy_run_is_scored_on_the_true_s_and_r(suite):
+    p = suite.problem_named("edge-1d")  # safe on (2, 6.5); R = x - x^2 / 20 rises to x = 10
+    truth = suite.truth_of(p)
+    flipped = suite.Sensor(p, 0.0, 1.0, np.random.default_rng(0))  # every label reported wrong
+    run = suite._drive(_Asks(9.0), flipped, np.array(p.start), budget=5)
+    assert run.success.tolist() == [False, True] and run.best[1] > truth.best and run.error is None
+    told = suite.score(p, truth, run, clean=True)  # the reported data alone: the optimum beaten, safely
+    assert told["found"] and told["fail"] == 1
+    true = suite.score(p, truth, run, clean=False)
+    assert true["unsafe_best"] and not true["within5"] and not true["found"]  # only the start was truly safe
+    assert true["fail"] == 1 and true["true_fail"] == 1 and true["beyond"] == pytest.approx(0.25, abs=1e-3)
+    run = suite._drive(_Asks(6.4), suite.Sensor(p, 0.0, 0.0, np.random.default_rng(0)), np.array(p.start), 5)
+    near = suite.score(p, truth, run, clean=False)  # R(6.4) is 1.4 % of the range below the optimum
+    assert near["within5"] and near["found"] and not near["unsafe_best"] and near["true_fail"] == 0
+
+
+def test_a_method_that_raises_is_counted_not_fatal(suite, monkeypatch):
+    class Raising(_Asks):
+        def ask(self):
+            raise suite.CorlError("no proposal: the data are degenerate")
+
+    p = suite.problem_named("edge-1d")
+    run = suite._drive(Raising(5.0), suite.Sensor(p, 0.0, 0.0, np.random.default_rng(0)), np.array(p.start), 5)
+    assert run.error == "no proposal: the data are degenerate" and len(run.X) == 1  # the start is kept
+
+    def broken(*args):
+        raise ValueError("bad\nsetting")
+
+    monkeypatch.setitem(suite._RUNNERS, "CORL", broken)
+    recs = suite.run_task(suite.Task("edge-1d", "CORL", 2, 0, 2, 6, 0))
+    assert [r["error"] for r in recs] == ["ValueError: bad setting"] * 2 and recs[0]["trials"] == 0
+    assert suite.summarize(recs)["errors"] == 2
+
+
+def test_a_sensor_draws_per_trial_whatever_the_point(suite):
+    p = suite.problem_named("inside-2d")
+    truth = suite.truth_of(p)
+    a, b, c = (suite.Sensor.of_run(p, truth, 0.1, 0.2, 0, 3) for _ in range(3))
+    inside, other, outside = np.array([0.2, 0.1]), np.array([-0.5, 0.6]), np.array([1.9, -1.9])
+    for _ in range(50):  # the k-th trial's draws, wherever it is: a flip at one point is a flip at every other
+        x, y, z = a(inside), b(other), c(outside)
+        assert x.success == y.success != z.success
+        if x.success:
+            assert x.return_ - p.ret(inside[None])[0] == pytest.approx(y.return_ - p.ret(other[None])[0])
+    c = suite.Sensor.of_run(p, truth, 0.1, 0.2, 0, 3)
+    d = suite.Sensor.of_run(p, truth, 0.1, 0.2, 0, 4)
+    told = [c(inside) for _ in range(4000)]
+    assert [o.success for o in told[:50]] != [d(inside).success for _ in range(50)]  # another start, other draws
+    ok = np.array([o.success for o in told])
+    noise = np.array([o.return_ for o in told if o.success]) - p.ret(inside[None])[0]
+    assert 0.77 < ok.mean() < 0.83 and np.std(noise) == pytest.approx(0.1 * truth.range, rel=0.05)
+    clean = suite.Sensor(p, 0.0, 0.0, np.random.default_rng(0))
+    for x in (inside, outside):
+        assert clean(x) == suite.rollout(p, x)
+
+
+def test_noise_zero_is_a_clean_run_and_jobs_change_nothing(suite, tmp_path, capsys):
+    args = ["--methods", "CORL", "--problems", "edge-1d", "--starts", "2", "--budget", "10"]
+
+    def records(*extra):
+        path = tmp_path / "runs.json"
+        suite.main(args + list(extra) + ["--json", str(path)])
+        return [{k: v for k, v in r.items() if k != "ms"} for r in json.loads(path.read_text())]
+
+    plain = records()
+    assert plain == records("--noise", "0") and plain[0]["noise"] == 0.0 and plain[0]["error"] is None
+    noisy = records("--noise", "0.05", "--flip", "0.2")
+    assert noisy == records("--noise", "0.05", "--flip", "0.2", "--jobs", "2") and noisy != plain
+    out = capsys.readouterr().out
+    assert "noise 0.05 x the return range, flip 0.2" in out and "true fail/run" in out
+    (tmp_path / "old.json").write_text(json.dumps(_records("edge-1d", "SafeOpt", [True], [1])))  # no TRUE scores
+    suite.main(["--table", str(tmp_path / "runs.json"), str(tmp_path / "old.json"), "--markdown"])
+    rows = [line for line in capsys.readouterr().out.splitlines() if "SafeOpt" in line]
+    assert rows == ["| edge-1d | training | SafeOpt | 1/1 | 1.0 | 0.010 | 11.0 | - | - | - | 0 | 1.0 |"]
