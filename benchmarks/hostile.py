@@ -168,6 +168,10 @@ def cases() -> list[Case]:
         Case("run", "--out under a FILE", ("run", "usertask:make", "--out", "afile.txt/o", "-q")),
         Case("run", "--resume --seed other", ("run", "synthetic", "--store", "s.corl", "--resume", "--seed", "5",
                                               "--out", "o", "-q")),
+        *[Case("run", f"{flag} {v}", ("run", "usertask:make", flag, v, "--out", "o", "-q"))
+          for flag, v in (("--return-noise", "-1"), ("--return-noise", "nan"), ("--flip", "0.5"))],
+        Case("run", "--resume --flip other", ("run", "synthetic", "--store", "s.corl", "--resume", "--flip", "0.1",
+                                              "--out", "o", "-q")),
         Case("ask", "--seed -1", ("ask", "--store", "new.corl", "--task", "usertask:make", "--seed", "-1")),
         Case("ask", "--method NOPE", ("ask", "--store", "new.corl", "--task", "usertask:make", "--method", "NOPE")),
         Case("ask", "--out FILE", ("ask", "--store", "new.corl", "--task", "usertask:make", "--out", "afile.txt")),

@@ -110,8 +110,11 @@ class StoredRun:
         the run and applied again when it is reopened. A method that cannot run the task raises here.
         ``context`` (k,): learn in that scene from what the runs of ``learned_from`` (the store it
         will be attached to, read-only) taught (:mod:`corl.contexts`); the run records its context.
+        A :class:`corl.tasks.noisy.NoisyTask` records its sensors (``config["noise"]``); reopening the
+        run takes the task as given, so wrap it in the same sensors again (``corl run --resume`` does).
         """
         from corl.problem import context_of
+        from corl.tasks.noisy import NoisyTask
 
         upto: dict = {}
         if context is not None:
@@ -125,6 +128,8 @@ class StoredRun:
         config = {"task_spec": task_spec, "task_name": task.name}
         if corl_overrides:
             config["corl_overrides"] = dict(corl_overrides)
+        if isinstance(task, NoisyTask):  # the sensors the trials are read through (corl run --return-noise)
+            config["noise"] = task.noise.as_dict()
         own = context_of(task)
         if context is not None or own is not None:  # a task with contexts: every run records its scene
             config["context"] = _plain(context if context is not None else own)

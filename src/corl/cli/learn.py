@@ -37,6 +37,12 @@ def run(
     rollout_every_step: Optional[bool] = typer.Option(
         None, "--rollout-every-step/--no-rollout-every-step",
         help="roll out every motion-optimization step (default: the task's CORLConfig), or only the converged one"),
+    return_noise: Optional[str] = typer.Option(
+        None, "--return-noise", help="try the task with a noisy return sensor: the std of a Gaussian error added to "
+                                     "every return, in the return's units (corl.tasks.NoisyTask; default 0)"),
+    flip: Optional[str] = typer.Option(
+        None, "--flip", help="try the task with a flaky success sensor: the probability in [0, 0.5) that a trial's "
+                             "success is reported flipped (never the demonstration's; default 0)"),
 ) -> None:
     """One learning run, every trial committed to the store; writes OUT/summary.json, figures (and with --video
     a video, rendered once after the store is closed: learning never waits for it)."""
@@ -50,11 +56,16 @@ def run(
     check_args(task=("TASK", task), seed=("--seed", seed), folder=("--out", out), store=("--store", store_path))
     if method is not None and method not in METHODS:
         fail(f"unknown method '{method}'; choose from {', '.join(METHODS)}")
+    try:
+        sensors = _sensor_flags(return_noise, flip)
+    except CorlError as exc:
+        fail(str(exc))
     NEW_PATHS.track(out, store_path)
     t0 = time.perf_counter()
     try:  # every check, the task and the learner (replayed) before the store is opened for writing
         the_task, session, seen = _run_to_continue(task, store_path, resume=resume, method=method, seed=seed,
-                                                   rollout_every_step=rollout_every_step, quiet=quiet, context=context)
+                                                   rollout_every_step=rollout_every_step, quiet=quiet, context=context,
+                                                   sensors=sensors)
         db = open_store(store_path)
     except CorlError as exc:
         fail(str(exc))
@@ -95,6 +106,8 @@ def run(
                                   context=info.config.get("context"), contextual=bool(info.config.get("contextual")))
             payload["store"] = str(store_path)
             payload["run_id"] = session.run_id
+            if info.config.get("noise") is not None:  # corl.tasks.NoisyTask: the sensors the trials were read by
+                payload["noise"] = info.config["noise"]
             payload.update(task_extras(the_task, session.learner))
             tracker.message("writing figures ...")
             payload["files"] = write_run_artifacts(the_task, session.learner, out)
@@ -304,22 +317,48 @@ def _run_to_tell(task: str, store: Path, outcome):
     return session
 
 
+def _sensor_flags(return_noise: str | None, flip: str | None) -> dict[str, float]:
+    """``--return-noise`` and ``--flip`` as ``{"return_noise": ..., "flip": ...}`` (only those given), checked."""
+    from corl.tasks.noisy import check_flip, check_return_noise
+
+    given = {}
+    if return_noise is not None:
+        given["return_noise"] = check_return_noise(plain_number("--return-noise", return_noise), "--return-noise")
+    if flip is not None:
+        given["flip"] = check_flip(plain_number("--flip", flip), "--flip")
+    return given
+
+
+def _with_sensors(the_task, sensors: dict | None, seed: int):
+    """``the_task`` seen through the sensors ``{"return_noise", "flip"[, "seed"]}`` (corl.tasks.NoisyTask), or
+    as it is when there are none."""
+    from corl.tasks.noisy import NoisyTask
+
+    if not sensors:
+        return the_task
+    return NoisyTask(the_task, return_noise=sensors.get("return_noise", 0.0), flip=sensors.get("flip", 0.0),
+                     seed=sensors.get("seed", seed))
+
+
 def _run_to_continue(task: str, store_path: Path, *, resume: bool, method, seed, rollout_every_step, quiet: bool,
-                     context=None):
+                     context=None, sensors: dict | None = None):
     """``(task in the run's scene, StoredRun, seen)`` of ``corl run``: the store's latest run replayed from a
     read-only open (``--resume``), or a new run in no store yet; nothing is written (see StoredRun.attach).
-    ``seen``: for a new run in a context, ``(id of the latest run it learned up to,)``; else None."""
+    ``seen``: for a new run in a context, ``(id of the latest run it learned up to,)``; else None.
+    ``sensors`` (``--return-noise``, ``--flip``): a new run's task is seen through them; a resumed run keeps
+    its recorded ones, and a flag given with another value is refused."""
     from corl.methods import DEFAULT_METHOD
     from corl.session import StoredRun
     from corl.store import RunStatus
     from corl.tasks.registry import BUILTIN_TASKS, load_task
 
+    sensors = sensors or {}
     info = latest_run(store_path) if resume else None  # read-only
     if resume and info is None and not quiet:
         typer.echo(f"--resume: {store_path} holds no run yet (killed before its first commit?); starting one", err=True)
     if info is None:
         seed = 0 if seed is None else seed
-        the_task = load_task(task, seed=seed)
+        the_task = _with_sensors(load_task(task, seed=seed), sensors, seed)
         overrides = None if rollout_every_step is None else {"rollout_every_step": rollout_every_step}
         if context is not None:
             c = parse_context(the_task, context)
@@ -332,9 +371,11 @@ def _run_to_continue(task: str, store_path: Path, *, resume: bool, method, seed,
         return the_task, StoredRun.new(the_task, task_spec=task, method=method, seed=seed,
                                        corl_overrides=overrides), None
     stored_every = info.config.get("corl_overrides", {}).get("rollout_every_step")
+    stored_sensors = info.config.get("noise") or {}  # a run without sensors reads exactly: 0 and 0
     _refuse_other_flags(info, ("--method", method, info.method), ("--seed", seed, info.seed),
-                        ("--[no-]rollout-every-step", rollout_every_step, stored_every))
-    the_task = load_task(task, seed=int(info.seed or 0))
+                        ("--[no-]rollout-every-step", rollout_every_step, stored_every),
+                        *((f"--{k.replace('_', '-')}", v, stored_sensors.get(k, 0.0)) for k, v in sensors.items()))
+    the_task = _with_sensors(load_task(task, seed=int(info.seed or 0)), stored_sensors, int(info.seed or 0))
     if context is not None:
         _refuse_other_context(info, store_path, parse_context(the_task, context))
     return _run_scene(the_task, info), _reopened(the_task, store_path, info), None

@@ -91,6 +91,10 @@ def run_text(summary: dict, path: str | Path) -> str:
         J0 = "" if s["J_initial"] is None else f" ({start} {s['J_initial']:.4g})"
         lines.append(f"best return {s['best_return']:+.4f} at theta {[round(v, 4) for v in s['best_theta']]}, "
                      f"J {s['J_final']:.4g}{J0}")
+    if s.get("noise"):  # corl run --return-noise / --flip (corl.tasks.NoisyTask)
+        n, true = s["noise"], s.get("final_info", {}).get("true_return")
+        lines.append(f"read through noisy sensors (return noise {n['return_noise']:g}, flip {n['flip']:g})"
+                     + ("" if true is None else f": the best trial's true return {true:+.4f}"))
     files = s.get("files", {})
     lines.append("wrote " + ", ".join([str(path)] + [v for k, v in files.items() if not k.endswith("_skipped")]))
     lines += [f"{k}: {v}" for k, v in files.items() if k.endswith("_skipped")]
