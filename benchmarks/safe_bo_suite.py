@@ -566,21 +566,21 @@ def _drive(opt, sense, start: np.ndarray, budget: int) -> Run:
 
 
 def run_corl(p, start, budget, seed, sense):
-    return _drive(SafeBOOptimizer(p.bounds, max_evals=budget, seed=seed), sense, start, budget)
+    return _drive(SafeBOOptimizer(p.bounds, max_evals=budget, seed=seed, start=start), sense, start, budget)
 
 
 def run_corl_budget(p, start, budget, seed, sense):  # CORL(budget): spends every trial, never below the band
-    return _drive(SafeBOOptimizer(p.bounds, max_evals=budget, seed=seed, spend_budget=True), sense, start, budget)
+    return _drive(SafeBOOptimizer(p.bounds, max_evals=budget, seed=seed, spend_budget=True, start=start), sense, start, budget)
 
 
 def run_pibu_budget(p, start, budget, seed, sense):  # PIBU(budget): fitted GPs, no stopping rule
     cfg = BOConfig(FITTED_REGRESSION, FITTED_CLASSIFIER, stop_rule=StopRule.BUDGET, distance_scale=tuple(p.bounds.width))
-    return _drive(PIBUOptimizer(p.bounds, cfg, max_evals=budget, seed=seed), sense, start, budget)
+    return _drive(PIBUOptimizer(p.bounds, cfg, max_evals=budget, seed=seed, start=start), sense, start, budget)
 
 
 def run_pibu(p, start, budget, seed, sense):  # PIBU as a user gets it now: GPs fitted from the data
     cfg = BOConfig(FITTED_REGRESSION, FITTED_CLASSIFIER, distance_scale=tuple(p.bounds.width))
-    return _drive(PIBUOptimizer(p.bounds, cfg, max_evals=budget, seed=seed), sense, start, budget)
+    return _drive(PIBUOptimizer(p.bounds, cfg, max_evals=budget, seed=seed, start=start), sense, start, budget)
 
 
 def run_pibu_tenth(p, start, budget, seed, sense):  # the baseline: l = box / 10, paper sf and noise
@@ -588,7 +588,7 @@ def run_pibu_tenth(p, start, budget, seed, sense):  # the issue's baseline: l = 
     cfg = BOConfig(RegressionConfig(lengthscale=ls, signal_std=10.0, noise_std=0.11),
                    ClassifierConfig(lengthscale=ls, signal_std=10.0),
                    distance_scale=tuple(p.bounds.width))
-    return _drive(PIBUOptimizer(p.bounds, cfg, max_evals=budget, seed=seed), sense, start, budget)
+    return _drive(PIBUOptimizer(p.bounds, cfg, max_evals=budget, seed=seed, start=start), sense, start, budget)
 
 
 def botorch_step(b: Bounds, X, s, r, seed: int):

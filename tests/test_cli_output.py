@@ -48,7 +48,7 @@ def test_run_default_quiet_json_and_store_listings(tmp_path):
     finished = [line for line in log if line.endswith("| finished")]
     assert len(finished) == 1 and finished[0].startswith("run CMA | trials 99/99 | failures ")
     assert "best R +0." in finished[0]
-    assert res.stdout.startswith("run 1: CMA on synthetic, seed 0: 99 trials") and "best return" in res.stdout
+    assert res.stdout.startswith("run 1: CMA on synthetic, seed 0: 99 trials") and "learner's best: return" in res.stdout
 
     res = _invoke(["run", "synthetic", "--method", "CMA", "--out", str(out), "--no-video", "--quiet", "--json"])
     assert res.stderr == ""

@@ -58,8 +58,9 @@ def corl(folder: Path, *args: str) -> str:
 
 @pytest.fixture(scope="module")
 def template(tmp_path_factory):
-    """``s.corl``: trial 0 told, trial 1 pending; ``demo.corl``: the demonstration pending; ``told.corl``:
-    nothing pending; ``fin.corl``: a finished run; all CORL+PIBU on the synthetic task, seed 0."""
+    """``s.corl``: trial 0 told, trial 1 pending; ``demo.corl``: the demonstration read once as failed and
+    asked again (start_retries); ``told.corl``: nothing pending; ``fin.corl``: a finished run; all CORL+PIBU
+    on the synthetic task, seed 0."""
     folder = tmp_path_factory.mktemp("stores")
     s, demo, told, fin = (str(folder / n) for n in ("s.corl", "demo.corl", "told.corl", "fin.corl"))
     ask = ["ask", "--task", "synthetic", "--raw", "--out", str(folder / "trials"), "--store"]
@@ -68,6 +69,8 @@ def template(tmp_path_factory):
     corl(folder, "tell", "--store", told, "--task", "synthetic", "--success", "yes", "--return", "0.2")
     shutil.copy(told, s)
     corl(folder, *ask, s)
+    corl(folder, "tell", "--store", demo, "--task", "synthetic", "--success", "no")  # a wrong reading, kept
+    corl(folder, *ask, demo)  # the demonstration asked again
     corl(folder, "run", "synthetic", "--store", fin, "--out", str(folder / "finout"), "--no-video", "-q")
     shutil.rmtree(folder / "trials")
     shutil.rmtree(folder / "finout")
@@ -176,4 +179,4 @@ def test_a_store_changed_between_the_read_and_the_write_is_refused(workdir, monk
     res = runner.invoke(app, [*TELL, "s.corl", "--success", "yes", "--return", "0.3"])
     assert res.exit_code == 2 and "changed while this command read it" in res.stderr, res.output
     status = json.loads(corl(workdir, "status", "--store", "s.corl", "--json"))
-    assert status["told"] == 2 and status["best"]["return"] == pytest.approx(0.5, abs=1e-15)
+    assert status["told"] == 2 and status["best_observed"]["return"] == pytest.approx(0.5, abs=1e-15)

@@ -35,9 +35,25 @@ def test_demonstration_is_trial_zero_and_failure_is_reported():
     learner = CORL(task, scripted([]))
     p = learner.ask()
     assert p.index == 0 and p.step == "demonstration"
+    learner.tell(task.rollout(p.w))  # one failed reading may be wrong: the demonstration is tried again (start_retries)
+    again = learner.ask()
+    assert again.index == 1 and again.step == "demonstration" and np.array_equal(again.w, p.w)
     with pytest.raises(DemonstrationFailedError, match="demonstration"):
-        learner.tell(task.rollout(p.w))
-    assert len(learner.history) == 1 and learner.done
+        learner.tell(task.rollout(again.w))
+    assert len(learner.history) == 2 and learner.done
+
+
+def test_a_demonstration_read_once_as_failed_is_tried_again_and_the_run_goes_on():
+    task = SyntheticTask((0.5, 0.5))
+    learner = CORL(task, scripted([0.4, 0.5]), fast_config(max_rounds=1))
+    first = learner.ask()
+    learner.tell(Outcome(False))  # a wrong reading of the success sensor
+    again = learner.ask()
+    assert again.step == "demonstration" and np.array_equal(again.w, first.w)
+    learner.tell(task.rollout(again.w))
+    assert not learner.done and learner.failed_w == []  # the demonstration succeeded: no failed w is kept
+    learner.run()
+    assert learner.best is not None and learner.stop_reason is not None
 
 
 def test_tell_without_ask_and_repeated_ask():

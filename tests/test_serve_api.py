@@ -81,13 +81,16 @@ def test_ask_and_tell_are_idempotent_and_conflicts_are_409(tmp_path):
     assert [r.outcome is not None for r in records] == [True, False]
 
 
-def test_a_failed_demonstration_is_refused_and_nothing_is_stored(tmp_path):
+def test_a_demonstration_that_fails_twice_is_refused_and_the_second_reading_is_not_stored(tmp_path):
     with background(tmp_path / "s.corl", "synthetic") as url:
         c = Client(url, raw=True)
-        c.ask()
+        first = c.ask()
+        c.tell(False)  # one failed reading may be wrong: stored, and the demonstration is asked again
+        again = c.ask()
+        assert again.index == 1 and np.array_equal(again.w, first.w)
         with pytest.raises(InputError, match="demonstration failed"):  # HTTP 400
             c.tell(False)
-        assert c.status()["pending"] == 0 and c.status()["trials"] == 0
+        assert c.status()["pending"] == 1 and c.status()["trials"] == 1
 
 
 def test_a_task_without_reference_needs_raw_and_a_task_with_one_gets_its_trajectory(tmp_path):

@@ -68,11 +68,15 @@ class Trial:
 
 @dataclass(frozen=True)
 class RemoteBest:
-    """The best successful trial so far: ``theta`` (m,), its ``return_`` and analytic cost ``J``."""
+    """The learner's best so far (what to deploy): ``theta`` (m,), its estimated ``return_`` with ``return_std``
+    (None when the estimate is one reading), analytic cost ``J`` and the ``trial`` whose motion it is. Not
+    the highest reading: that is ``status()["best_observed"]``."""
 
     theta: np.ndarray
     return_: float
     J: float | None = None
+    return_std: float | None = None
+    trial: int | None = None
 
 
 class Client:
@@ -148,9 +152,10 @@ class Client:
 
     @property
     def best(self) -> RemoteBest | None:
-        """The best successful trial so far, or None."""
+        """The learner's best so far (:class:`RemoteBest`), or None."""
         b = self.status().get("best")
-        return None if b is None else RemoteBest(np.asarray(b["theta"], dtype=float), float(b["return"]), b.get("J"))
+        return None if b is None else RemoteBest(np.asarray(b["theta"], dtype=float), float(b["return"]), b.get("J"),
+                                                 b.get("return_std"), b.get("trial"))
 
     def status(self) -> dict:
         """``GET /status``: trials, failures, pending, best, done, stop_reason."""

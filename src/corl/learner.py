@@ -58,7 +58,7 @@ from corl.problem import Bounds, Outcome, Proposal, Task
 from corl.realise import check_demonstration, feasible, motion_problem, realise
 from corl.trajectory.solver import SolverConfig, solve
 
-__all__ = ["CORLConfig", "CORL", "Best", "OptimizerFactory", "cost_of"]
+__all__ = ["CORLConfig", "CORL", "Best", "OptimizerFactory", "best_observed", "cost_of"]
 
 OptimizerFactory = Callable[[Bounds, np.ndarray, np.random.Generator], BlackBoxOptimizer]
 
@@ -78,12 +78,14 @@ class CORLConfig:
     rollout_every_step: bool = True
     reuse_data: bool = True
     max_phase_steps: int = 0  # phase steps (Eq. 10) after the trajectory steps; needs task.spline
+    start_retries: int = 1  # a failed demonstration is rolled out again this often before the run refuses it
     solver: SolverConfig = field(default_factory=SolverConfig)
     demo_tolerance: float = 1e-3  # the demonstration needs max|h(w0, theta0)| <= this, in h's units
 
     def __post_init__(self) -> None:  # every field checked here, before any rollout (corl.checks)
         for name in ("eps_max", "eps_w", "eps_theta", "demo_tolerance"):
             object.__setattr__(self, name, checks.number(f"CORLConfig.{name}", getattr(self, name), low=0.0, low_open=True))
+        object.__setattr__(self, "start_retries", checks.integer("CORLConfig.start_retries", self.start_retries))
         for name in ("max_rounds", "max_optimization_steps", "max_rl_trials"):
             object.__setattr__(self, name, checks.integer(f"CORLConfig.{name}", getattr(self, name), low=1))
         object.__setattr__(self, "max_phase_steps", checks.integer("CORLConfig.max_phase_steps", self.max_phase_steps))
@@ -95,12 +97,27 @@ class CORLConfig:
 
 @dataclass(frozen=True)
 class Best:
-    """The best policy so far: ``w`` (n,), ``theta`` (m,), its return and analytic cost J."""
+    """The best policy so far: ``w`` (n,), ``theta`` (m,), its return and analytic cost J.
+
+    ``return_`` is the learner's estimate of R(theta): the black-box method's posterior mean when
+    its return model fits the noise (``CORL``), else the reading of the trial (Alg. 1 as published);
+    ``return_std`` is that estimate's standard deviation (NaN when it is a reading) and ``reading``
+    the trial's own reading.
+    """
 
     w: np.ndarray
     theta: np.ndarray
     return_: float
     J: float
+    return_std: float = float("nan")
+    reading: float | None = None
+
+
+def best_observed(history) -> tuple[Proposal, Outcome] | None:
+    """The ``(proposal, outcome)`` of ``history`` with the highest successful reading (the first of
+    equal ones), or None: the *best observed* trial, never called "best return"."""
+    ok = [(p, o) for p, o in history if o.success and o.return_ is not None]
+    return max(ok, key=lambda t: t[1].return_, default=None)
 
 
 def cost_of(task: Task, w: np.ndarray) -> float:
@@ -247,6 +264,14 @@ class CORL:
         """The best successful policy ``(w*, theta*)`` with its return and J, or None."""
         return self._best
 
+    @property
+    def best_observed(self) -> tuple[Proposal, Outcome] | None:
+        """The successful trial with the highest *reading* (under noise, the luckiest), or None.
+
+        Not what to deploy: that is :attr:`best`, the learner's best. Shown beside it under this name.
+        """
+        return best_observed(self.history)
+
     def run(self, task: Task | None = None, *, max_trials: int | None = None,
             callback: Callable[[Proposal, Outcome], None] | None = None) -> Best | None:
         """Convenience loop: ask, ``task.rollout(w)``, tell, until done or ``max_trials``."""
@@ -254,8 +279,8 @@ class CORL:
         return self.best
 
     # -- Algorithm 1 ---------------------------------------------------------------------------
-    def _proposal(self, w: np.ndarray, theta: np.ndarray, step: str) -> Proposal:
-        if self.failed_before(w):  # a guard: every step checks failed_before first
+    def _proposal(self, w: np.ndarray, theta: np.ndarray, step: str, *, again: bool = False) -> Proposal:
+        if not again and self.failed_before(w):  # a guard: every step checks failed_before first
             raise StateError(f"internal error: the learner was about to propose a w that already failed ({step})")
         return Proposal(index=len(self.history), w=w, theta=theta, step=step, round=self.rounds)
 
@@ -268,6 +293,12 @@ class CORL:
         task, cfg = self.task, self.config
         w0, theta0 = self._demonstration.w, self._demonstration.theta  # checked in __init__
         outcome = yield self._proposal(w0, theta0, self.start_step)
+        for _ in range(cfg.start_retries):  # a failed demonstration may be one wrong reading: try it again
+            if outcome.success:
+                break
+            outcome = yield self._proposal(w0, theta0, self.start_step, again=True)
+        if outcome.success:  # a demonstration that succeeded is no failed w, whatever an earlier reading said
+            self.failed_w = [f for f in self.failed_w if np.linalg.norm(w0 - f) >= cfg.eps_w]
         if not outcome.success:
             self._end = StopReason.NO_SAFE_POINT
             raise DemonstrationFailedError(
@@ -439,10 +470,19 @@ class CORL:
         else:  # the learner stopped it: the run's budget, or Alg. 1's ||theta(d+1) - theta(d)|| < eps_theta
             self.rl_stop_reason = StopReason.BUDGET if self.rl_trials >= cfg.max_rl_trials else StopReason.CONVERGED
         # set best theta* = argmax_{theta in D} R(theta) s.t. S(theta*) = 1
+        posterior = getattr(optimizer, "learners_best", None)  # a method that models the noise: its posterior
+        if posterior is not None:
+            chosen = [c for c in candidates if np.array_equal(c[1], posterior.theta)]
+            if chosen:  # the last trial at that theta (a repeat's w is the same projection)
+                w_star, theta_star, r_star = chosen[-1]
+            r_est, r_std = (posterior.mean, posterior.std) if (chosen or np.array_equal(posterior.theta, theta_star)) \
+                else (r_star, float("nan"))
+            self._best = Best(w_star, theta_star, r_est, cost_of(task, w_star), r_std, r_star)
+            return w_star, theta_star, r_star, data
         for w, theta, r in candidates:
             if r > r_star:
                 w_star, theta_star, r_star = w, theta, r
-        self._best = Best(w_star, theta_star, r_star, cost_of(task, w_star))
+        self._best = Best(w_star, theta_star, r_star, cost_of(task, w_star), reading=r_star)
         return w_star, theta_star, r_star, data
 
 

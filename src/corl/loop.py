@@ -106,10 +106,11 @@ def optimize(f: Callable[[np.ndarray], object], bounds, start, *, method: str = 
         opt.tell(x, outcome)
         if callback is not None:
             callback(x, outcome)
-    if opt.stop_reason is StopReason.NO_SAFE_POINT and opt.n_evals == 1:
+    if opt.stop_reason is StopReason.NO_SAFE_POINT and 0 < opt.n_evals == getattr(opt, "_start_failures", 1):
+        times = "once" if opt.n_evals == 1 else f"all {opt.n_evals} times it was tried (start_retries={opt.n_evals - 1})"
         raise _keeping(InputError(
-            f"the start {np.array2string(opt.X_[0], precision=6)} failed: {opt.name} grows the safe set from a "
-            "successful start; give a start known to succeed"), opt)
+            f"the start {np.array2string(opt.X_[0], precision=6)} failed {times}: {opt.name} grows the safe set "
+            "from a successful start; give a start known to succeed"), opt)
     best = opt.best
     return OptimizeResult(theta=None if best is None else best[0], return_=None if best is None else best[1],
                           stop_reason=opt.stop_reason, trials=opt.n_evals, failures=int(np.sum(~opt.success_)),

@@ -225,6 +225,7 @@ class StoredRun:
         finally:
             if self.learner.done:
                 self.store.set_status(self.run_id, RunStatus.FINISHED)
+        self.store.set_best(self.run_id, best_record(self.learner))  # what corl status reads as the learner's best
 
     @property
     def done(self) -> bool:
@@ -279,13 +280,30 @@ def _snapshot(info) -> tuple:
     return info.n_trials, info.n_told, info.status
 
 
+def best_record(learner) -> dict | None:
+    """The learner's best as JSON: ``theta``, ``return`` (its estimate), ``return_std`` (None for a reading),
+    ``J``, and ``trial``, the index of the trial whose w it is (the last one with that w); None before any success."""
+    best = getattr(learner, "best", None)
+    if best is None:
+        return None
+    trial = next((p.index for p, o in reversed(learner.history) if o.success and np.array_equal(p.w, best.w)), None)
+    std = getattr(best, "return_std", float("nan"))
+    return {"theta": [float(v) for v in np.asarray(best.theta).reshape(-1)], "return": float(best.return_),
+            "return_std": None if not np.isfinite(std) else float(std),
+            "J": None if getattr(best, "J", None) is None else float(best.J), "trial": trial}
+
+
 def _check_outcome(learner, proposal: Proposal, outcome: Outcome) -> None:
     """Raise what ``learner.tell(outcome)`` would raise for a refused outcome, before it is stored."""
     from corl.learner import CORL
 
     if isinstance(learner, CORL) and proposal.step == "demonstration" and not outcome.success:
+        failed = sum(p.step == "demonstration" and not o.success for p, o in learner.history)
+        if failed < learner.config.start_retries:  # one wrong reading: the learner asks the demonstration again
+            return
         raise DemonstrationFailedError(
-            "the demonstration failed, so Algorithm 1 has no safe start; nothing was stored. Re-record the "
+            f"the demonstration failed {failed + 1} times (start_retries={learner.config.start_retries}), so "
+            "Algorithm 1 has no safe start; the last reading was not stored. Re-record the "
             "demonstration (or check the success criterion) and tell its outcome again, or start a new run"
         )
 

@@ -23,7 +23,7 @@ def _run_info(r) -> dict:
 def status(store: Path = typer.Option(..., help="run store"),
            run_id: Optional[int] = typer.Option(None, "--run", help="run id (default: latest)"),
            json_out: bool = JSON_OUT) -> None:
-    """Show a run: its configuration, trials so far, failures and the best trial."""
+    """Show a run: its configuration, trials so far, failures, the learner's best and the best observed reading."""
     from corl.errors import CorlError
 
     check_args(path=("--store", store))
@@ -33,22 +33,27 @@ def status(store: Path = typer.Option(..., help="run store"),
             if info is None:
                 fail(f"{store} holds no run yet", code=1)
             trials = db.trials(info.id)
+            learners = db.best(info.id)
     except CorlError as exc:
         fail(str(exc))
     told = [t for t in trials if t.outcome is not None]
     ok = [t for t in told if t.outcome.success]
-    best = max(ok, key=lambda t: t.outcome.return_, default=None)
+    observed = max(ok, key=lambda t: t.outcome.return_, default=None)  # the highest reading: not what to deploy
+    seen = None if observed is None else {"trial": observed.index, "return": observed.outcome.return_,
+                                          "theta": observed.proposal.theta.tolist()}
     if json_out:
         return print_json({**_run_info(info), "trials": len(trials), "told": len(told),
                            "pending": len(trials) - len(told), "failures": len(told) - len(ok),
-                           "best": None if best is None else {"trial": best.index, "return": best.outcome.return_,
-                                                              "theta": best.proposal.theta.tolist()}})
+                           "best": learners, "best_observed": seen})
     typer.echo(f"run {info.id}: task {info.task}, method {info.method}, seed {info.seed}, {info.status.value}")
     typer.echo(f"trials {len(trials)} (told {len(told)}, pending {len(trials) - len(told)}), "
                f"failures {len(told) - len(ok)}")
-    if best is not None:
-        typer.echo(f"best return {best.outcome.return_:.6g} at trial {best.index}, "
-                   f"theta {[round(float(v), 6) for v in best.proposal.theta]}")
+    if learners is not None:
+        std = "" if learners.get("return_std") is None else f" +- {learners['return_std']:.3g}"
+        typer.echo(f"learner's best: return {learners['return']:.6g}{std} at trial {learners.get('trial')}, "
+                   f"theta {[round(float(v), 6) for v in learners['theta']]}")
+    if seen is not None:
+        typer.echo(f"best observed: reading {seen['return']:.6g} at trial {seen['trial']}")
 
 
 def runs(store: Path = typer.Option(..., help="run store"), json_out: bool = JSON_OUT) -> None:

@@ -26,6 +26,7 @@ def run_summary(task, method: str, seed: int, learner, seconds: float, *, contex
     context (``corl run --context``) ``start``: what its first trial was (the skill's policy, the
     nearest learned context's theta*, the scene's demonstration; the demonstration in the first context)."""
     from corl.learner import cost_of
+    from corl.session import best_record
     from corl.versions import library_versions
 
     history, best = learner.history, learner.best
@@ -33,7 +34,11 @@ def run_summary(task, method: str, seed: int, learner, seconds: float, *, contex
         "task": task.name, "method": method, "seed": seed,
         "success": best is not None,
         "best_theta": None if best is None else [float(v) for v in best.theta],
-        "best_return": None if best is None else best.return_,
+        "best_return": None if best is None else best.return_,  # the learner's best: what to deploy
+        "best_return_std": None if best is None or not np.isfinite(getattr(best, "return_std", np.nan))
+        else float(best.return_std),
+        "best_trial": None if best is None else best_record(learner)["trial"],
+        "best_observed": _observed(learner),  # the highest reading (under noise, the luckiest): not deployed
         "J_initial": cost_of(task, history[0][0].w) if history else None,
         "J_final": None if best is None else best.J,
         "trials": len(history),
@@ -49,6 +54,16 @@ def run_summary(task, method: str, seed: int, learner, seconds: float, *, contex
     if contextual:
         summary["start"] = getattr(learner, "start_kind", None) or "demonstration"  # corl.contexts.ContextualCORL
     return summary
+
+
+def _observed(learner) -> dict | None:
+    from corl.learner import best_observed
+
+    found = best_observed(getattr(learner, "history", []))
+    if found is None:
+        return None
+    p, o = found
+    return {"trial": p.index, "return": float(o.return_), "theta": [float(v) for v in np.asarray(p.theta).reshape(-1)]}
 
 
 def task_extras(task, learner) -> dict:
@@ -89,8 +104,12 @@ def run_text(summary: dict, path: str | Path) -> str:
     else:
         start = "demonstration" if s.get("start") in (None, "demonstration") else f"start: {s['start']},"
         J0 = "" if s["J_initial"] is None else f" ({start} {s['J_initial']:.4g})"
-        lines.append(f"best return {s['best_return']:+.4f} at theta {[round(v, 4) for v in s['best_theta']]}, "
-                     f"J {s['J_final']:.4g}{J0}")
+        std = "" if s.get("best_return_std") is None else f" +- {s['best_return_std']:.3g}"
+        lines.append(f"learner's best: return {s['best_return']:+.4f}{std} at theta "
+                     f"{[round(v, 4) for v in s['best_theta']]}, J {s['J_final']:.4g}{J0}")
+        seen = s.get("best_observed")
+        if seen is not None and seen["trial"] != s.get("best_trial"):
+            lines.append(f"best observed: reading {seen['return']:+.4f} at trial {seen['trial']} (not the learner's best)")
     if s.get("noise"):  # corl run --return-noise / --flip (corl.tasks.NoisyTask)
         n, true = s["noise"], s.get("final_info", {}).get("true_return")
         lines.append(f"read through noisy sensors (return noise {n['return_noise']:g}, flip {n['flip']:g})"

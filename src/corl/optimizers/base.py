@@ -45,6 +45,9 @@ __all__ = ["BlackBoxOptimizer", "StopReason", "as_outcome", "as_point", "as_rng"
            "ANSWER_TOLERANCE", "MODEL_RANGE"]
 
 ANSWER_TOLERANCE = 5e-3  # a told point answers the proposal within this fraction of the box width
+#: A start reported as failed is asked again this many times before a safe method gives up on it: one
+#: wrong reading of a success sensor (a latch switch, a vision check) must not end a run.
+START_RETRIES = 1
 #: Returns up to this magnitude reach the models as told. Larger ones are divided by a power of two
 #: (exact, :func:`model_scale`): a GP squares its returns' scale (signal variance, ``r @ alpha``),
 #: which overflows beyond about 1e154; 1e100 leaves room for the products on top of that.
@@ -193,6 +196,14 @@ class BlackBoxOptimizer(ABC):
     start : (m,) inside ``bounds``, or None. When given, it is asked first, before the method's
         own proposals, unless a success is already known or it was told (the user's known-safe
         start); None lets the method choose.
+    start_retries : how many more times a start reported as failed is asked again while no trial
+        has succeeded (default :data:`START_RETRIES`, once): on a robot a failed start is more often a
+        wrong reading than a wrong start. A start that then succeeds was known safe all along: its
+        failed readings no longer reach the safety model (:meth:`_safety_data`).
+    confirm : trials that repeat the best at the end (default 0): when the method would stop, or
+        when only this many trials are left in the budget, it asks its best again this many times
+        (each time the best as it then stands), then stops for the reason it had. On a robot whose
+        returns are noisy, a repeat tells a lucky reading from a good theta before it is deployed.
 
     Attributes
     ----------
@@ -203,7 +214,8 @@ class BlackBoxOptimizer(ABC):
     needs_success = False  # a safe method: stops with NO_SAFE_POINT while every trial failed
     answer_tolerance = ANSWER_TOLERANCE
 
-    def __init__(self, bounds: Bounds, *, max_evals: int = 100, name: str = "optimizer", start=None) -> None:
+    def __init__(self, bounds: Bounds, *, max_evals: int = 100, name: str = "optimizer", start=None,
+                 start_retries: int = START_RETRIES, confirm: int = 0) -> None:
         if not isinstance(bounds, Bounds):
             raise InputError(f"bounds must be a corl.Bounds, got {type(bounds).__name__}")
         if isinstance(max_evals, bool) or int(max_evals) != max_evals or max_evals < 1:
@@ -213,6 +225,17 @@ class BlackBoxOptimizer(ABC):
         self.name = name
         self.start = None if start is None else as_point(start, bounds, name=name, what="start").copy()
         self._start_open = start is not None  # the start is still to be tried
+        if isinstance(start_retries, bool) or not isinstance(start_retries, (int, np.integer)) or start_retries < 0:
+            raise InputError(f"start_retries must be an integer >= 0 (how often a failed start is tried again), "
+                             f"got {start_retries!r}")
+        self.start_retries = int(start_retries)
+        self._start_failures = 0  # failed readings of the start told so far
+        if isinstance(confirm, bool) or not isinstance(confirm, (int, np.integer)) or confirm < 0:
+            raise InputError(f"confirm must be an integer >= 0 (trials that repeat the best at the end), got {confirm!r}")
+        self.confirm = int(confirm)
+        self._confirmations = 0  # confirmation trials told
+        self._confirm_reason: StopReason | None = None  # why the search stopped, once it confirms its best
+        self._confirming = False  # the current proposal repeats the best
         m = bounds.dim
         self.X_ = np.empty((0, m))
         self.success_ = np.empty(0, dtype=bool)
@@ -251,11 +274,17 @@ class BlackBoxOptimizer(ABC):
         self.X_ = np.vstack([self.X_, x])
         self.success_ = np.append(self.success_, outcome.success)
         self.returns_ = np.append(self.returns_, r)
+        if self.start is not None and self._answers(x, self.start) and not outcome.success:
+            self._start_failures += 1
         if self._start_open and self._answers(x, self.start):
-            self._start_open = False
+            # a failed start is asked again (start_retries) while nothing has succeeded yet
+            retries = self.start_retries if self.needs_success else 0  # only a safe method refuses a failed start
+            self._start_open = not outcome.success and self._start_failures <= retries
         if asked:
             self._answered = self._proposal  # told once: a second answer before the next ask() is refused
         answered = self._proposal is not None and self._answers(x, self._proposal)
+        if answered and self._confirming:
+            self._confirmations += 1
         if answered or not self._handed_out or self.n_evals >= self.max_evals:
             if self._proposal is not None and not answered:
                 self._withdraw(self._proposal)  # decided from older data (or past the budget): decide again
@@ -277,7 +306,17 @@ class BlackBoxOptimizer(ABC):
 
     @property
     def best(self) -> tuple[np.ndarray, float] | None:
-        """The successful point with the highest return and that return, or None."""
+        """The method's best: the successful point with the highest return and that return, or None.
+
+        Methods with a return model whose noise is fitted (``CORL``) answer the *learner's best*
+        instead, the sampled point with the highest posterior mean among those the model calls safe
+        (:class:`corl.optimizers.safe.SafeBOOptimizer`); :attr:`best_observed` is the largest reading.
+        """
+        return self.best_observed
+
+    @property
+    def best_observed(self) -> tuple[np.ndarray, float] | None:
+        """The successful point with the highest *reading* and that reading, or None (under noise, the luckiest)."""
         ok = self.success_ & np.isfinite(self.returns_)
         if not np.any(ok):
             return None
@@ -292,14 +331,23 @@ class BlackBoxOptimizer(ABC):
     def _decide(self) -> None:
         if self._decided:
             return
+        left = self.confirm - self._confirmations  # confirmation trials still to run (``confirm``)
+        self._confirming = False
         if self.n_evals >= self.max_evals:
             decision = StopReason.BUDGET
         elif self._start_open and not np.any(self.success_):
             decision = self.start
         elif self.needs_success and self.n_evals and not np.any(self.success_):
             decision = StopReason.NO_SAFE_POINT  # checked before any model is fitted
+        elif self._confirm_reason is not None and left <= 0:
+            decision = self._confirm_reason  # confirmed: the stop the search had reached
+        elif left > 0 and (self._confirm_reason is not None or self.n_evals >= self.max_evals - left):
+            self._confirm_reason = self._confirm_reason or StopReason.BUDGET  # the last trials confirm
+            decision, self._confirming = self._best_theta(), True
         else:
             decision = self._propose()
+            if left > 0 and isinstance(decision, StopReason) and np.any(self.success_):
+                self._confirm_reason, decision, self._confirming = decision, self._best_theta(), True
         if decision is None:
             decision = StopReason.CONVERGED
         if isinstance(decision, StopReason):
@@ -308,6 +356,26 @@ class BlackBoxOptimizer(ABC):
             x = np.asarray(decision, dtype=float).reshape(self.bounds.dim)
             self._stop_reason, self._proposal = None, self.bounds.clip(x)
         self._decided = True
+
+    def _best_theta(self) -> np.ndarray:
+        """The point a confirmation trial repeats: :attr:`best`'s (a subclass answers without deciding)."""
+        return self.best_observed[0]
+
+    def _safety_data(self) -> tuple[np.ndarray, np.ndarray]:
+        """What the safety model g_S is fitted on: ``(X, success)``, (d', m) and (d',).
+
+        Every trial, except the start's failed readings once the start has succeeded (a retry,
+        ``start_retries``): the start was given as known to succeed, and a success confirmed it, so
+        its failures were wrong readings. Left in, a failure and a success at one point put g_S's
+        latent mean near 0 there, below any band, and the run would stop at its start.
+        """
+        if self.start is None or not self._start_failures:
+            return self.X_, self.success_
+        at_start = np.all(np.abs(self.X_ - self.start) <= self.answer_tolerance * self.bounds.width, axis=1)
+        if not np.any(at_start & self.success_):
+            return self.X_, self.success_
+        keep = ~(at_start & ~self.success_)
+        return self.X_[keep], self.success_[keep]
 
     def _answers(self, x: np.ndarray, proposal: np.ndarray) -> bool:
         """``x`` answers ``proposal``: within ``answer_tolerance`` of the box width in every coordinate."""

@@ -74,8 +74,9 @@ class _BayesOpt(BlackBoxOptimizer):
 
     stop_when_zero = False
 
-    def __init__(self, bounds: Bounds, config: BOConfig, *, max_evals: int, seed, name: str, start=None) -> None:
-        super().__init__(bounds, max_evals=max_evals, name=name, start=start)
+    def __init__(self, bounds: Bounds, config: BOConfig, *, max_evals: int, seed, name: str, start=None,
+                 **kwargs) -> None:
+        super().__init__(bounds, max_evals=max_evals, name=name, start=start, **kwargs)
         self.config = config
         self.rng = as_rng(seed)
         self.last_acquisition = None  # the acquisition of the latest ask, for plots
@@ -113,17 +114,17 @@ class PIBUOptimizer(_BayesOpt):
     needs_success = True
 
     def __init__(self, bounds: Bounds, config: BOConfig = BOConfig(), pibu: PIBUConfig = PIBUConfig(), *,
-                 max_evals: int = 100, seed=None, start=None) -> None:
+                 max_evals: int = 100, seed=None, start=None, **kwargs) -> None:
         if pibu.variant is PIBUVariant.LITERAL and config.stop_rule is StopRule.NEAR_SAMPLED:
             config = replace(config, stop_rule=StopRule.SMALL_STEP)
-        super().__init__(bounds, config, max_evals=max_evals, seed=seed, name="PIBU", start=start)
+        super().__init__(bounds, config, max_evals=max_evals, seed=seed, name="PIBU", start=start, **kwargs)
         self.stop_when_zero = True
         self.pibu = pibu
 
     def _acquisition(self):
         if len(self.X_) == 0:
             return None
-        classifier = self.models.classifier(self.X_, self.success_)
+        classifier = self.models.classifier(*self._safety_data())
         ok = self.success_ & np.isfinite(self.returns_)
         if np.any(ok):
             r = model_returns(self.returns_[ok], self.config.regression.fit_hyperparameters)  # (base.model_returns)

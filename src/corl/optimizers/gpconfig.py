@@ -189,26 +189,32 @@ class ModelFitter:
         self._last_classifier = None
         self.fallback: dict[str, str] = {}
 
-    def regression(self, X, y):
-        """g_R fitted on successful points ``X`` (d, m) with returns ``y`` (d,)."""
+    def regression(self, X, y, *, keep: bool = True):
+        """g_R fitted on successful points ``X`` (d, m) with returns ``y`` (d,).
+
+        ``keep=False`` leaves the warm start as it was: a fit for a report (the learner's best)
+        must not change the next decision's fit.
+        """
         cfg = self.regression_config
         if not cfg.fit_hyperparameters:
             return cfg.build().fit(X, y)
         res = fit_regression(X, y, self.bounds, cfg.priors, warm=self._warm["regression"])
-        if not res.fallback:
-            self._warm["regression"] = res.log_params
-        self.fallback["regression"] = res.fallback
+        if keep:
+            if not res.fallback:
+                self._warm["regression"] = res.log_params
+            self.fallback["regression"] = res.fallback
         return res.model
 
-    def classifier(self, X, s):
-        """g_S fitted on every point ``X`` (d, m) with outcomes ``s`` (d,)."""
+    def classifier(self, X, s, *, keep: bool = True):
+        """g_S fitted on every point ``X`` (d, m) with outcomes ``s`` (d,); ``keep`` as in :meth:`regression`."""
         cfg = self.classifier_config
         if not cfg.fit_hyperparameters:
             return cfg.build().fit(X, s)
         res = fit_classifier(X, s, self.bounds, cfg.prior_mean, cfg.priors, warm=self._warm["classifier"],
                              previous=self._last_classifier)
-        if not res.fallback:
-            self._warm["classifier"] = res.log_params
-        self.fallback["classifier"] = res.fallback
-        self._last_classifier = res.model
+        if keep:
+            if not res.fallback:
+                self._warm["classifier"] = res.log_params
+            self.fallback["classifier"] = res.fallback
+            self._last_classifier = res.model
         return res.model

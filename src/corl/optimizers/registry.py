@@ -25,7 +25,7 @@ import numpy as np
 from corl.acquisition import PIBUConfig, PIBUVariant
 from corl.acquisition.safe_ei import SEIBConfig
 from corl.errors import InputError
-from corl.optimizers.base import BlackBoxOptimizer, as_point, as_rng
+from corl.optimizers.base import START_RETRIES, BlackBoxOptimizer, as_point, as_rng
 from corl.optimizers.bo import BOConfig, PIBUOptimizer, StopRule, UCBOptimizer
 from corl.optimizers.gpconfig import (FITTED_CLASSIFIER, FITTED_REGRESSION, SYNTHETIC_CLASSIFIER,
                                       SYNTHETIC_REGRESSION, ClassifierConfig, RegressionConfig)
@@ -80,6 +80,8 @@ class OptimizerSettings:
     distance_scale: tuple[float, ...] | None = None
     sal: SALConfig | None = None
     seib: SEIBConfig = field(default_factory=SEIBConfig)
+    start_retries: int = START_RETRIES  # a start reported as failed is asked again this often (safe methods)
+    confirm: int = 0  # trials that repeat the best at the end (CORL, PIBU): for noisy returns, before deploying
 
     def __post_init__(self) -> None:
         if self.failure_return is not None and not np.isfinite(self.failure_return):
@@ -88,6 +90,10 @@ class OptimizerSettings:
             raise InputError("stop_distance and step_distance must be >= 0")
         if not isinstance(self.seib, SEIBConfig):
             raise InputError(f"OptimizerSettings.seib must be a corl.SEIBConfig, got {type(self.seib).__name__}")
+        for name in ("start_retries", "confirm"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
+                raise InputError(f"OptimizerSettings.{name} must be an integer >= 0, got {v!r}")
         self.seib.check_classifier(self.classifier)  # far_lengthscale needs a fitted g_S: refused here, before a trial
 
     @classmethod
@@ -132,12 +138,13 @@ def register_optimizer(name: str) -> Callable[[Builder], Builder]:
 
 @register_optimizer("PIBU")
 def _pibu(bounds, start, *, budget, rng, settings):
-    return PIBUOptimizer(bounds, settings.bo(), max_evals=budget, seed=rng, start=start)
+    return PIBUOptimizer(bounds, settings.bo(), max_evals=budget, seed=rng, start=start, **_repeats(settings))
 
 
 @register_optimizer("PIBU(budget)")  # PIBU without its stopping rule: it runs the whole budget
 def _pibu_budget(bounds, start, *, budget, rng, settings):
-    return PIBUOptimizer(bounds, settings.bo(StopRule.BUDGET), max_evals=budget, seed=rng, start=start)
+    return PIBUOptimizer(bounds, settings.bo(StopRule.BUDGET), max_evals=budget, seed=rng, start=start,
+                         **_repeats(settings))
 
 
 @register_optimizer("PIBU(literal)")
@@ -174,6 +181,11 @@ def _power(bounds, start, *, budget, rng, settings):
                  start=start)
 
 
+def _repeats(settings) -> dict:
+    """The start's retries and the best's confirmations, for the methods that take them."""
+    return {"start_retries": settings.start_retries, "confirm": settings.confirm}
+
+
 def _fixed_failure(settings) -> float:
     """CMA's and PoWER's failure score: they fit no GP, so None (units-free for UCB) is the paper's -15."""
     return FAILURE_RETURN if settings.failure_return is None else settings.failure_return
@@ -185,7 +197,7 @@ def _seib(bounds, start, *, budget, rng, settings):
     from corl.optimizers.safe import SAFE_BO_CONFIG, SafeBOOptimizer
 
     config = replace(SAFE_BO_CONFIG, regression=settings.regression, classifier=settings.classifier)
-    return SafeBOOptimizer(bounds, config, settings.seib, max_evals=budget, seed=rng, start=start)
+    return SafeBOOptimizer(bounds, config, settings.seib, max_evals=budget, seed=rng, start=start, **_repeats(settings))
 
 
 @register_optimizer("CORL(budget)")  # CORL that spends its whole budget (SafeBOOptimizer._spend), never below the band
@@ -193,7 +205,8 @@ def _seib_budget(bounds, start, *, budget, rng, settings):
     from corl.optimizers.safe import SAFE_BO_CONFIG, SafeBOOptimizer
 
     config = replace(SAFE_BO_CONFIG, regression=settings.regression, classifier=settings.classifier)
-    return SafeBOOptimizer(bounds, config, settings.seib, max_evals=budget, seed=rng, start=start, spend_budget=True)
+    return SafeBOOptimizer(bounds, config, settings.seib, max_evals=budget, seed=rng, start=start, spend_budget=True,
+                           **_repeats(settings))
 
 
 def as_bounds(bounds) -> Bounds:

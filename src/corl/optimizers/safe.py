@@ -14,19 +14,21 @@ and, with few successes, with the gate open. It needs one known success
 
 from __future__ import annotations
 
-from dataclasses import replace
+import warnings
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from corl.acquisition import maximize
 from corl.acquisition.safe_ei import SEIB, SEIBConfig
+from corl.gp.classification import GPClassifier, LaplaceConvergenceWarning
 from corl.gp.fitting import fit_classifier
 from corl.optimizers.base import StopReason, model_scale
 from corl.optimizers.bo import BOConfig, StopRule, _BayesOpt, _stop
 from corl.optimizers.gpconfig import FITTED_CLASSIFIER, FITTED_REGRESSION
 from corl.problem import Bounds
 
-__all__ = ["SafeBOOptimizer", "SAFE_BO_CONFIG", "return_scale"]
+__all__ = ["SafeBOOptimizer", "SAFE_BO_CONFIG", "LearnersBest", "return_scale", "P_TRUSTED"]
 
 #: Fitted GPs; stop when the next point lies within 1e-3 of the box width of a sampled one.
 SAFE_BO_CONFIG = BOConfig(FITTED_REGRESSION, FITTED_CLASSIFIER, stop_rule=StopRule.NEAR_SAMPLED,
@@ -38,6 +40,31 @@ SAFE_BO_CONFIG = BOConfig(FITTED_REGRESSION, FITTED_CLASSIFIER, stop_rule=StopRu
 #: (sphere-6d: 9 optima found in 20 runs with the seeds, 3 without). In 3-4 D the seeds found fewer
 #: (far-edge-3d 9 against 13, twin-4d 7 against 9), so there SEIB keeps the points and refinement alone.
 BAND_SEEDS_FROM_DIM = 5
+
+#: The learner's best must be a theta whose own success the model does not doubt: g_S conditioned on
+#: every other trial (the same hyperparameters) still gives it a success probability of at least this.
+#: A lone success among failures (a failure read as a success) fails it; a success with a second
+#: success nearby, or a repeat of the same theta, passes. The start, given as known to succeed, is exempt.
+P_TRUSTED = 0.5
+#: ... or a second success (another trial, or a repeat) lies within this many of g_S's length scales:
+#: an optimum on the edge of the safe set has failures just beyond it, which pull the probability
+#: without it below P_TRUSTED, but the search has tried beside it before settling there.
+NEARBY = 0.5
+
+
+@dataclass(frozen=True)
+class LearnersBest:
+    """The learner's best: what to deploy. ``theta`` (m,), g_R's posterior ``mean`` and ``std`` of R there
+    (the return's units), g_S's success probability ``p_success``, the trial ``index`` (into ``X_``) and
+    that trial's ``reading``. Without noise the mean is the reading, up to the fitted noise."""
+
+    theta: np.ndarray
+    mean: float
+    std: float
+    p_success: float
+    index: int
+    reading: float
+
 
 _SQUARES_FINITE = 1e150  # below this magnitude a return's square is finite (float64 ends at 1.8e308)
 
@@ -111,17 +138,92 @@ class SafeBOOptimizer(_BayesOpt):
     needs_success = True  # a safe method: stops with NO_SAFE_POINT while every trial failed
 
     def __init__(self, bounds: Bounds, config: BOConfig = SAFE_BO_CONFIG, seib: SEIBConfig = SEIBConfig(), *,
-                 max_evals: int = 100, seed=None, start=None, spend_budget: bool = False) -> None:
-        super().__init__(bounds, config, max_evals=max_evals, seed=seed, name="CORL", start=start)
+                 max_evals: int = 100, seed=None, start=None, spend_budget: bool = False, **kwargs) -> None:
+        super().__init__(bounds, config, max_evals=max_evals, seed=seed, name="CORL", start=start, **kwargs)
         self.seib = seib
         self.spend_budget = bool(spend_budget)  # CORL(budget): never stop before max_evals (see _spend)
         seib.check_classifier(config.classifier)
         self._models = None
+        self._best_cache = None  # (len(X_), LearnersBest)
         self._far_classifier = None  # (points, g_S refitted for the far look) with far_lengthscale
         self._scale = tuple(float(w) for w in bounds.width) if config.distance_scale is None else config.distance_scale
         self._maximizer = config.maximizer  # below BAND_SEEDS_FROM_DIM, without seeds whatever boundary_pairs says
         if bounds.dim < BAND_SEEDS_FROM_DIM:  # the maximiser's Sobol points and refinement find SEIB's band there
             self._maximizer = replace(config.maximizer, boundary_pairs=0)
+
+    # -- the learner's best ----------------------------------------------------------------------
+    @property
+    def best(self) -> tuple[np.ndarray, float] | None:
+        """The learner's best ``(theta, posterior mean of R)`` (see :attr:`learners_best`), or None."""
+        b = self.learners_best
+        return None if b is None else (b.theta.copy(), b.mean)
+
+    @property
+    def learners_best(self) -> LearnersBest | None:
+        """The sampled success with the highest posterior mean of R among those the model calls safe.
+
+        "Safe": g_S conditioned on every *other* trial gives the point a success probability of at
+        least :data:`P_TRUSTED` (the start is exempt); when no success passes, the one g_S trusts most.
+        The decision for the data is worked out first (as :attr:`done` does), so the models are the
+        ones the next proposal comes from; after a stop the fit leaves the next decision's warm start
+        alone. None while nothing succeeded.
+        """
+        self._decide()
+        return self._learners_best()
+
+    def _learners_best(self) -> LearnersBest | None:
+        ok = np.flatnonzero(self.success_ & np.isfinite(self.returns_))
+        if not ok.size:
+            return None
+        key = len(self.X_)
+        if self._best_cache is not None and self._best_cache[0] == key:
+            return self._best_cache[1]
+        regression, classifier = self._fitted_models()
+        X = self.X_[ok]
+        if regression is None:  # too few successes for g_R: the readings themselves
+            mean, std = self.returns_[ok].astype(float), np.zeros(ok.size)
+        else:
+            unit = model_scale(self.returns_[ok])
+            mu, var = regression.predict(X)
+            mean, std = mu * unit, np.sqrt(var) * unit
+        p = classifier.predict_proba(X)
+        order = np.argsort(-mean, kind="stable")
+        chosen = next((i for i in order if self._trusted(ok[i], classifier)), int(np.argmax(p)))
+        best = LearnersBest(X[chosen].copy(), float(mean[chosen]), float(std[chosen]), float(p[chosen]),
+                            int(ok[chosen]), float(self.returns_[ok[chosen]]))
+        self._best_cache = (key, best)
+        return best
+
+    def _best_theta(self) -> np.ndarray:
+        return self._learners_best().theta.copy()
+
+    def _fitted_models(self):
+        """(g_R on the successes in model units or None, g_S): the decision's own when it fitted them."""
+        if self._models is not None and self._models[0] == len(self.X_):
+            return self._models[1], self._models[2]
+        ok = self.success_ & np.isfinite(self.returns_)
+        r = self.returns_[ok] / model_scale(self.returns_[ok])
+        Xs, s = self._safety_data()
+        return self.models.regression(self.X_[ok], r, keep=False), self.models.classifier(Xs, s, keep=False)
+
+    def _trusted(self, i: int, classifier) -> bool:
+        """Trial ``i``'s success is not in doubt: the start, or p >= P_TRUSTED under g_S without trial ``i``."""
+        x = self.X_[i]
+        if self.start is not None and self._answers(x, self.start):
+            return True
+        Xs, s = self._safety_data()
+        model = getattr(classifier, "_model", classifier)  # a _Reuse wraps the decision's fit
+        ls = np.broadcast_to(np.asarray(model.kernel_.lengthscales, dtype=float), x.shape)
+        d = np.linalg.norm((Xs[s] - x) / ls, axis=1)
+        if np.sum(d < NEARBY) >= 2:  # itself and a second success (or a repeat) close by
+            return True
+        same = np.flatnonzero(np.all(Xs == x, axis=1) & s)
+        others = np.arange(len(Xs)) != (same[0] if same.size else -1)  # every trial but this one
+        loo = GPClassifier(model.kernel_, model.prior_mean, warm_start=False)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", LaplaceConvergenceWarning)
+            loo.fit(Xs[others], s[others])
+        return bool(loo.predict_proba(x[None])[0] >= P_TRUSTED)
 
     def _propose(self) -> np.ndarray | StopReason:
         if not np.any(self.success_ & np.isfinite(self.returns_)):  # a safe method does not guess
@@ -154,8 +256,7 @@ class SafeBOOptimizer(_BayesOpt):
             x, value = look()
             if np.isfinite(value) and value > least and not self._repeats(x):
                 return x
-        ok = self.success_ & np.isfinite(self.returns_)
-        return np.array(self.X_[ok][np.argmax(self.returns_[ok])], dtype=float)
+        return self._learners_best().theta.copy()
 
     def _learn(self, regression, classifier, p_min: float) -> tuple[np.ndarray, float]:
         """Where g_R is most uncertain among points with success probability at least ``p_min``."""
@@ -196,11 +297,13 @@ class SafeBOOptimizer(_BayesOpt):
         ok = self.success_ & np.isfinite(self.returns_)
         r = self.returns_[ok] / model_scale(self.returns_[ok])  # past MODEL_RANGE: a unit the GP can square
         if self._models is None or self._models[0] != len(self.X_):  # fitted once per ask
-            classifier = _Reuse(self.models.classifier(self.X_, self.success_))
+            classifier = _Reuse(self.models.classifier(*self._safety_data()))
             regression = self.models.regression(self.X_[ok], r)
             self._models = (len(self.X_), None if regression is None else _Reuse(regression), classifier)
         regression, classifier = self._models[1:]
-        best = float(np.max(r))
+        # R^+ is the best posterior mean at the sampled successes, not the largest reading: under
+        # noise the luckiest reading would close every gate (and stop the search) or chase the edge
+        best = float(np.max(r)) if regression is None else float(np.max(regression.predict(self.X_[ok])[0]))
         if far and self.seib.far_lengthscale is not None:
             classifier = self._far_look_classifier()
         return SEIB(regression, classifier, best, return_scale(r), self.seib, gated=gated,
@@ -214,7 +317,7 @@ class SafeBOOptimizer(_BayesOpt):
             self.seib.check_classifier(cfg)  # also when ``seib`` was replaced after construction
             priors = replace(cfg.priors, lengthscale=replace(cfg.priors.lengthscale, median=self.seib.far_lengthscale),
                              thin=False)  # the far look's own prior: a thin fit would undo it
-            fit = fit_classifier(self.X_, self.success_, self.bounds, cfg.prior_mean, priors)
+            fit = fit_classifier(*self._safety_data(), self.bounds, cfg.prior_mean, priors)
             self._far_classifier = (key, _Reuse(fit.model))
         return self._far_classifier[1]
 

@@ -296,7 +296,10 @@ class ServedRun:
         self.status = self._status()
 
     def _status(self) -> dict:
-        """What GET /status answers: counts, the pending trial, the best so far, done and why."""
+        """What GET /status answers: counts, the pending trial, the learner's best and the best observed reading,
+        done and why."""
+        from corl.session import best_record
+
         s = self.session
         told = [r.outcome for r in self.records if r.outcome is not None]
         best = s.best
@@ -308,9 +311,8 @@ class ServedRun:
             "pending": None if self.pending is None else self.pending.index,
             "step": self.records[-1].proposal.step if self.records else None,
             "round": self.records[-1].proposal.round if self.records else None,
-            "best": None if best is None else {"theta": np.asarray(best.theta).tolist(), "return": float(best.return_),
-                                               "J": _finite(getattr(best, "J", None))},
-            "best_told": self._best_told,
+            "best": None if best is None else {**best_record(s.learner), "J": _finite(getattr(best, "J", None))},
+            "best_observed": self._best_told,  # the highest reading told: under noise the luckiest, not deployed
             "done": bool(s.done), "stop_reason": None if reason is None else getattr(reason, "value", str(reason)),
             "theta_dim": self.task.theta_bounds.dim, "version": self.version, "broken": self.broken,
         }

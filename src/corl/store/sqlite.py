@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import sqlite3
 from contextlib import contextmanager
@@ -292,6 +293,29 @@ class RunStore:
         with self._transaction(f"mark run {run_id} {status.value}") as db:
             self._run_status(db, run_id)
             db.execute("UPDATE runs SET status = ? WHERE id = ?", (status.value, run_id))
+
+    # -- the learner's best -----------------------------------------------------------------------
+    def set_best(self, run_id: int, best: dict | None) -> None:
+        """Keep the learner's best of run ``run_id`` (JSON, :func:`corl.session.best_record`) for readers
+        that do not replay the run (``corl status``); written after each told trial, so a crash between
+        the two leaves it one trial behind until the run resumes."""
+        run_id = _as_int(run_id, what="run id")
+        text = json.dumps(best, allow_nan=False)
+        with self._transaction(f"keep the best of run {run_id}") as db:
+            self._run_status(db, run_id)
+            db.execute("INSERT OR REPLACE INTO meta (key, value) VALUES (?, ?)", (f"best:{run_id}", text))
+
+    def best(self, run_id: int) -> dict | None:
+        """The learner's best kept by :meth:`set_best`, or None (none kept yet, or a store from before)."""
+        run_id = _as_int(run_id, what="run id")
+        rows = self._read("SELECT value FROM meta WHERE key = ?", (f"best:{run_id}",))
+        if not rows:
+            return None
+        try:
+            value = json.loads(rows[0][0])
+        except ValueError:
+            raise self._damaged(f"the best kept for run {run_id} is not JSON") from None
+        return value if isinstance(value, dict) else None
 
     # -- trials --------------------------------------------------------------------------------
     def add_proposal(self, run_id: int, proposal: Proposal) -> None:

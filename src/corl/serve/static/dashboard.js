@@ -11,10 +11,10 @@ function showStatus(s) {
   setText("trials", s.trials);
   setText("failures", s.failures);
   setText("pending", s.pending === null ? "none" : s.pending);
-  const told = s.best_told;
+  const told = s.best_observed;
   setText("best-told", told ? fmt(told.return) : "\u2013");
   setText("best-told-detail", told ? `trial ${told.trial}, theta ${JSON.stringify(told.theta.map((v) => +v.toFixed(4)))}` : "");
-  setText("best", s.best ? fmt(s.best.return) : "\u2013");
+  setText("best", s.best ? fmt(s.best.return) + (s.best.return_std === null ? "" : ` \u00b1 ${fmt(s.best.return_std)}`) : "\u2013");
   setText("best-theta", s.best ? `theta ${JSON.stringify(s.best.theta.map((v) => +v.toFixed(4)))}` : "");
   setText("step", s.step === null ? "\u2013" : `${s.step}, ${s.round}`);
   const state = $("state");
