@@ -16,7 +16,15 @@ must leave the store as it was (its told and pending trials), and the run must s
 them: the last probe tells trial 1 properly. The table prints expected and actual status per probe;
 the last lines count the probes that failed, and must read 0.
 
-    PYTHONPATH=src python benchmarks/hostile_serve.py
+A third kind, **load**, runs against a server started with a file limit of 1,024 (``ulimit -n``):
+a flood of 1,100 connections that each send half a request line and wait, slow headers, slow
+bodies with and without the token. During each, a well-behaved client asks ``GET /status`` on a
+fresh connection every 0.2 s; its second table prints that client's latency, how many hostile
+connections the server dropped and how soon, and how much the server wrote to stderr. Every
+well-behaved request must be answered within 5 s, and stderr must stay under 1 MB.
+
+    PYTHONPATH=src python benchmarks/hostile_serve.py            # all three
+    PYTHONPATH=src python benchmarks/hostile_serve.py --load     # the load probes only
 """
 
 from __future__ import annotations
@@ -24,10 +32,14 @@ from __future__ import annotations
 import http.client
 import json
 import os
+import resource
+import selectors
 import socket
+import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -55,14 +67,18 @@ class Result:
     ok: bool
 
 
-def start_server(folder: Path, *args: str, timeout: float = 120.0) -> tuple[subprocess.Popen, str]:
-    """``corl serve --port 0 ARGS`` in ``folder``; returns the process and its URL once it listens."""
-    proc = subprocess.Popen([*CORL, "serve", "--port", "0", *args], cwd=folder, env=_env(), text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+def start_server(folder: Path, *args: str, timeout: float = 120.0, files: int | None = None,
+                 stderr=subprocess.PIPE) -> tuple[subprocess.Popen, str]:
+    """``corl serve --port 0 ARGS`` in ``folder`` (with ``ulimit -n files`` when given); returns the process
+    and its URL once it listens."""
+    cmd = [*CORL, "serve", "--port", "0", *args]
+    if files is not None:
+        cmd = ["sh", "-c", f'ulimit -n {int(files)} && exec "$@"', "sh", *cmd]
+    proc = subprocess.Popen(cmd, cwd=folder, env=_env(), text=True, stdout=subprocess.PIPE, stderr=stderr)
     line = proc.stdout.readline()
     if not line:
         proc.wait(timeout)
-        raise RuntimeError(f"corl serve did not start: {proc.stderr.read()[-2000:]}")
+        raise RuntimeError(f"corl serve did not start: {proc.stderr.read()[-2000:] if proc.stderr else ''}")
     return proc, json.loads(line)["url"]
 
 
@@ -274,6 +290,205 @@ def run_all(folder: Path) -> list[Result]:
     return results
 
 
+# -- load: floods and slow clients against a server with a file limit of 1,024 -----------------------------------------
+SERVER_FILES = 1024  # the server's file limit (ulimit -n) in the load probes
+FLOOD = 1100  # more connections than the server has files
+WELL_BEHAVED_S = 5.0  # a well-behaved request must be answered within this, whatever the load
+
+
+@dataclass
+class Load:
+    probe: str
+    opened: int  # hostile connections opened (a connect refused or timed out is not counted)
+    dropped: int  # of them, closed by the server while the probe ran
+    drop_s: float  # the latest of those closes, seconds after the connection was opened (nan: none)
+    answered: int  # well-behaved GET /status answered 200 within WELL_BEHAVED_S
+    asked: int
+    median_ms: float
+    worst_ms: float  # inf: one was not answered
+    stderr_bytes: int  # what the server wrote to stderr during the probe
+    ok: bool
+
+
+class Hostiles(threading.Thread):
+    """``count`` connections to ``address`` that each send ``first``, then ``trickle`` every second, and
+    never finish their request; records when the server closes each. With ``reopen``, each connection
+    the server closes is opened again at once, so ``count`` stay open (or try to)."""
+
+    def __init__(self, address: tuple[str, int], count: int, first: bytes, trickle: bytes = b"",
+                 reopen: bool = False) -> None:
+        super().__init__(name="hostiles", daemon=True)
+        self.address, self.count, self.first, self.trickle, self.reopen = address, count, first, trickle, reopen
+        self.opened = 0
+        self.drops: list[float] = []  # seconds from open to the server's close, per dropped connection
+        self.ready = threading.Event()
+        self.halt = threading.Event()
+
+    def run(self) -> None:
+        selector = selectors.DefaultSelector()
+        live: dict[socket.socket, float] = {}
+
+        def open_one() -> None:
+            try:
+                s = socket.create_connection(self.address, timeout=3.0)
+                s.sendall(self.first)
+            except OSError:
+                return
+            s.setblocking(False)
+            selector.register(s, selectors.EVENT_READ)
+            live[s] = time.monotonic()
+            self.opened += 1
+
+        try:
+            for _ in range(self.count):
+                if self.halt.is_set():
+                    break
+                open_one()
+            self.ready.set()
+            next_trickle = time.monotonic() + 1.0
+            while not self.halt.is_set():
+                for key, _ in selector.select(timeout=0.05):
+                    s = key.fileobj
+                    try:
+                        if s.recv(65536):
+                            continue  # an answer (a 408, a 503): the close follows
+                    except BlockingIOError:
+                        continue
+                    except OSError:
+                        pass
+                    self.drops.append(time.monotonic() - live.pop(s))
+                    selector.unregister(s)
+                    s.close()
+                    if self.reopen and not self.halt.is_set():
+                        open_one()
+                if self.trickle and time.monotonic() >= next_trickle:
+                    next_trickle += 1.0
+                    for s in list(live):
+                        try:
+                            s.send(self.trickle)
+                        except OSError:
+                            pass  # closed by the server: the select above records it
+        finally:
+            self.ready.set()
+            for s in live:
+                s.close()
+            selector.close()
+
+
+def _status_once(url: str, auth: dict) -> float:
+    """Seconds one ``GET /status`` takes on a fresh connection (inf: no 200 within WELL_BEHAVED_S)."""
+    host, port = url.rsplit("//", 1)[1].rsplit(":", 1)
+    t0 = time.monotonic()
+    conn = http.client.HTTPConnection(host, int(port), timeout=WELL_BEHAVED_S)
+    try:
+        conn.request("GET", "/status", headers=auth)
+        response = conn.getresponse()
+        response.read()
+        ok = response.status == 200
+    except (OSError, http.client.HTTPException):
+        ok = False
+    finally:
+        conn.close()
+    took = time.monotonic() - t0
+    return took if ok and took <= WELL_BEHAVED_S else float("inf")
+
+
+def load_probe(url: str, label: str, count: int, first: bytes, trickle: bytes, seconds: float,
+               expect_drop_s: float, reopen: bool = False, *, stderr: Path) -> Load:
+    """Run ``count`` hostile connections for ``seconds`` while a well-behaved client asks /status every 0.2 s.
+    ok: every well-behaved request answered in time, stderr under 1 MB, every hostile connection closed by
+    the server within ``expect_drop_s`` of its opening (but those open when the probe ends, with ``reopen``)."""
+    auth = {"Authorization": f"Bearer {TOKEN}"}
+    host, port = url.rsplit("//", 1)[1].rsplit(":", 1)
+    before = stderr.stat().st_size
+    hostiles = Hostiles((host, int(port)), count, first, trickle, reopen)
+    hostiles.start()
+    hostiles.ready.wait(60)
+    latencies = []
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        latencies.append(_status_once(url, auth))
+        time.sleep(0.2)
+    hostiles.halt.set()
+    hostiles.join(30)
+    grown = stderr.stat().st_size - before
+    answered = [t for t in latencies if t != float("inf")]
+    drops = hostiles.drops
+    ok = (len(answered) == len(latencies) and grown < 1_000_000 and hostiles.opened > 0 and bool(drops)
+          and max(drops) <= expect_drop_s and (reopen or len(drops) == hostiles.opened))
+    return Load(label, hostiles.opened, len(drops), max(drops) if drops else float("nan"), len(answered),
+                len(latencies), 1e3 * statistics.median(answered) if answered else float("inf"),
+                1e3 * max(latencies) if latencies else float("inf"), grown, ok)
+
+
+def _raise_file_limit() -> tuple[int, int]:
+    """This process's file limit raised to its hard limit (FLOOD sockets need as many files); the old one."""
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    wanted = hard if hard != resource.RLIM_INFINITY else max(soft, 4 * FLOOD)
+    if soft != resource.RLIM_INFINITY and soft < wanted:
+        resource.setrlimit(resource.RLIMIT_NOFILE, (wanted, hard))
+    return soft, hard
+
+
+def load_probes(url: str, stderr: Path) -> list[Load]:
+    """The floods and slow clients, one after the other, against the server at ``url`` (stderr in ``stderr``)."""
+    post = (b"POST /tell HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: application/json\r\n"
+            b"Content-Length: 1048576\r\n")
+    token = f"Authorization: Bearer {TOKEN}\r\n".encode()
+    probes = [
+        (f"a flood of {FLOOD:,} idle connections, each sent 'GET /sta'", FLOOD, b"GET /sta", b"", 10.0, 8.0),
+        (f"the same flood, each closed connection opened again", FLOOD, b"GET /sta", b"", 10.0, 8.0, True),
+        ("300 slow headers (a header line a second, never the end)", 300,
+         b"GET /status HTTP/1.1\r\nHost: 127.0.0.1\r\n", b"X-Slow: 1\r\n", 9.0, 8.0),
+        ("300 slow bodies with the token (1 MiB announced, 100 B/s)", 300, post + token + b"\r\n",
+         b" " * 100, 14.0, 13.0),
+        ("300 slow bodies without the token", 300, post + b"\r\n", b" " * 100, 5.0, 2.0),
+    ]
+    old = _raise_file_limit()
+    try:
+        return [load_probe(url, *probe, stderr=stderr) for probe in probes]
+    finally:
+        resource.setrlimit(resource.RLIMIT_NOFILE, old)
+
+
+def run_load(folder: Path) -> list[Load]:
+    """The load probes against ``corl serve`` with ``ulimit -n SERVER_FILES`` on ``s.corl`` (prepared), then
+    a check that the run is unchanged and still answers."""
+    if not (folder / "s.corl").exists():
+        prepare(folder)
+    log = folder / "serve-stderr.txt"
+    with open(log, "w") as err:
+        proc, url = start_server(folder, "--store", "s.corl", "--task", "synthetic", "--token-file", "token.txt",
+                                 files=SERVER_FILES, stderr=err)
+    auth = {"Authorization": f"Bearer {TOKEN}"}
+    try:
+        before = json.loads(request(url, "GET", "/status", headers=auth)[2])
+        results = load_probes(url, log)
+        status, _, data = request(url, "GET", "/status", headers=auth)
+        after = json.loads(data) if status == 200 else {}
+        same = status == 200 and all(after.get(k) == before[k] for k in ("trials", "pending", "failures"))
+        results.append(Load("afterwards: GET /status, the run unchanged", 0, 0, float("nan"), int(same), 1,
+                            float("nan"), float("nan"), 0, same))
+    finally:
+        stop(proc)
+    return results
+
+
+def load_table(results: list[Load]) -> str:
+    width = max(len(r.probe) for r in results)
+    lines = [f"{'load probe (server: ulimit -n ' + str(SERVER_FILES) + ')':{width}s}  opened  dropped  "
+             f"last drop  well-behaved /status: answered  median   worst  stderr  ok"]
+    for r in results:
+        drop = f"{r.drop_s:7.1f} s" if r.drop_s == r.drop_s else "        -"
+        med = f"{r.median_ms:6.1f} ms" if r.median_ms == r.median_ms else "        -"
+        worst = "timeout" if r.worst_ms == float("inf") else (f"{r.worst_ms:6.0f} ms" if r.worst_ms == r.worst_ms
+                                                              else "        -")
+        lines.append(f"{r.probe:{width}s}  {r.opened:6d}  {r.dropped:7d}  {drop}  {r.answered:22d}/{r.asked:<3d}"
+                     f"  {med}  {worst:>8s}  {r.stderr_bytes:6d}  {'ok' if r.ok else 'NO'}")
+    lines.append(f"{len(results)} load probes, {sum(not r.ok for r in results)} failed")
+    return "\n".join(lines)
+
+
 def table(results: list[Result]) -> str:
     width = max(len(r.probe) for r in results)
     lines = [f"{'probe':{width}s}  expected  got  ok  answer"]
@@ -283,12 +498,16 @@ def table(results: list[Result]) -> str:
 
 
 def main() -> int:
+    only_load = "--load" in sys.argv[1:]
     with tempfile.TemporaryDirectory(prefix="corl-hostile-serve-") as tmp:
         t0 = time.perf_counter()
-        results = run_all(Path(tmp))
-        print(table(results))
+        results = [] if only_load else run_all(Path(tmp))
+        if results:
+            print(table(results))
+        loads = run_load(Path(tmp))
+        print(load_table(loads))
         print(f"({time.perf_counter() - t0:.1f} s)")
-    return 0 if all(r.ok for r in results) else 1
+    return 0 if all(r.ok for r in results) and all(r.ok for r in loads) else 1
 
 
 if __name__ == "__main__":

@@ -13,9 +13,10 @@
 
 Only the standard library is used (``http.client``, ``json``), so a robot's Python needs nothing
 but corl itself. Both calls are idempotent on the server, so the client repeats them on its own
-when the connection fails (a server restarted after a crash, a dropped network): for up to
-``retry_for`` seconds it retries, and a repeated ``tell`` of a trial the server already committed
-is answered as the first one was. Errors the server answers (a bad outcome, a trial not pending,
+when the connection fails (a server restarted after a crash, a dropped network) or the server is
+busy (503 with ``Retry-After``: at its limit of connections or requests): for up to ``retry_for``
+seconds it retries, and a repeated ``tell`` of a trial the server already committed is answered
+as the first one was. Errors the server answers (a bad outcome, a trial not pending,
 a wrong token) raise at once with the server's one-line message.
 """
 
@@ -204,7 +205,12 @@ class Client:
                 response = conn.getresponse()
                 payload = response.read()
                 status = response.status
-                break
+                wait = _retry_after(response) if status == 503 else None
+                if wait is None or time.monotonic() + wait > deadline:
+                    break
+                self.close()  # the server is at a limit of its connections or requests: once more, in a moment
+                time.sleep(wait)
+                continue
             except (ConnectionError, http.client.HTTPException, OSError) as exc:
                 self.close()  # a fresh connection next time
                 if time.monotonic() + delay > deadline:
@@ -223,5 +229,12 @@ class Client:
                 raise InputError(message)
             if status == 409:
                 raise StateError(message)
-            raise ServerError(message, status)  # 401, 413, 415; 503 (the store, the learner); 500 (the task)
+            raise ServerError(message, status)  # 401, 413, 415; 503 (the store, the learner; busy); 500 (the task)
         return answer
+
+
+def _retry_after(response: http.client.HTTPResponse) -> float | None:
+    """The seconds a 503 asks to wait before a retry (its ``Retry-After``, at most 5), or None when it asks none:
+    a busy server says when to come back; a store that cannot commit does not."""
+    value = response.getheader("Retry-After", "")
+    return min(float(value), 5.0) if value.isascii() and value.isdigit() else None

@@ -80,12 +80,17 @@ async def _read_json(request) -> dict:
     length = request.headers.get("content-length")
     if length is not None and (not length.isdigit() or int(length) > MAX_BODY_BYTES):
         raise HTTPProblem(413, f"the body is larger than {MAX_BODY_BYTES} bytes; send less info with the trial")
+    from starlette.requests import ClientDisconnect
+
     chunks, size = [], 0
-    async for chunk in request.stream():
-        size += len(chunk)
-        if size > MAX_BODY_BYTES:
-            raise HTTPProblem(413, f"the body is larger than {MAX_BODY_BYTES} bytes; send less info with the trial")
-        chunks.append(chunk)
+    try:
+        async for chunk in request.stream():
+            size += len(chunk)
+            if size > MAX_BODY_BYTES:
+                raise HTTPProblem(413, f"the body is larger than {MAX_BODY_BYTES} bytes; send less info with the trial")
+            chunks.append(chunk)
+    except ClientDisconnect:  # gone, or closed past its body's deadline (corl.serve.connections): nobody to answer
+        raise HTTPProblem(408, "the connection closed before the request's body arrived") from None
     data = b"".join(chunks)
     kind = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if kind != "application/json":  # also for an empty body: a cross-site form cannot send this type

@@ -6,6 +6,9 @@
   (:func:`hmac.compare_digest`). A browser cannot set that header on a page load or an EventSource,
   so ``GET /?token=...`` sets an HttpOnly, SameSite=Strict cookie and redirects to ``/``; the cookie
   is accepted on GET requests only, so a web page elsewhere cannot make a browser ``tell`` a trial.
+  The token is checked as soon as a request's headers are in, before its body is read; a refused
+  request's body is never read, only drained for a second before its connection closes
+  (:mod:`corl.serve.connections`).
 * On a loopback bind the Host header must name a loopback address: a web page cannot reach the
   server through DNS rebinding (a name of its own that resolves to 127.0.0.1).
 * A request body is JSON (``Content-Type: application/json``, which a cross-site form cannot send
