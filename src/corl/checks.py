@@ -22,7 +22,7 @@ import numpy as np
 
 from corl.errors import InputError
 
-__all__ = ["number", "integer", "flag", "lengths", "keywords"]
+__all__ = ["number", "integer", "flag", "text", "lengths", "keywords"]
 
 
 def _is_real(value: Any) -> bool:
@@ -62,6 +62,19 @@ def flag(name: str, value: Any) -> bool:
     if not isinstance(value, (bool, np.bool_)):
         raise InputError(f"{name} must be True or False, got {value!r}")
     return bool(value)
+
+
+def text(name: str, value: Any, *, spaces: bool = True, ascii: bool = False, secret: bool = False) -> str:
+    """``value`` as a str on one line: not empty, printable characters only (no CR, LF or other control
+    characters), without whitespace unless ``spaces``, ASCII only with ``ascii``. A ``secret`` (a token)
+    is not repeated in the message."""
+    good = isinstance(value, str) and value and value.isprintable() and (spaces or not any(c.isspace() for c in value)) \
+        and (value.isascii() or not ascii)
+    if not good:
+        what = "one line of printable" + (" ASCII" if ascii else "") + " characters" + ("" if spaces else " without spaces")
+        got = f"a {type(value).__name__}" if secret or not isinstance(value, str) else repr(value)
+        raise InputError(f"{name} must be {what}, got {got[:80]}")
+    return value
 
 
 def lengths(name: str, value: Any, *, low: float = 0.0) -> float | tuple[float, ...]:

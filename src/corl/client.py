@@ -31,6 +31,7 @@ from urllib.parse import urlsplit
 
 import numpy as np
 
+from corl.checks import flag, integer, number, text
 from corl.errors import CorlError, InputError, StateError
 from corl.problem import Outcome
 
@@ -90,20 +91,28 @@ class Client:
     raw : ask for the raw parameters w instead of a joint trajectory (a task without ``reference()``).
     timeout : seconds one request may take (an ask computes the next trial: give it time).
     retry_for : seconds to keep retrying a request whose connection failed (0: fail at once).
+
+    Every argument is checked here, and every argument of :meth:`tell` before anything is sent: a
+    wrong one raises a one-line :class:`corl.errors.InputError`.
     """
 
     def __init__(self, url: str, token: str | None = None, *, raw: bool = False, timeout: float = 600.0,
                  retry_for: float = 60.0) -> None:
+        text("Client(url)", url, spaces=False)
         parts = urlsplit(url)
-        if parts.scheme not in ("http", "https") or not parts.hostname:
-            raise InputError(f"the server's url must look like http://127.0.0.1:8765, got {url!r}")
+        try:
+            port = parts.port
+        except ValueError:  # not a number, or beyond 65535
+            port = 0
+        if parts.scheme not in ("http", "https") or not parts.hostname or port == 0 or parts.query or parts.fragment:
+            raise InputError(f"the server's url must look like http://127.0.0.1:8765 (a port in 1..65535), got {url!r}")
         self.url = url.rstrip("/")
         self._parts = parts
         self._prefix = parts.path.rstrip("/")  # a server behind a reverse proxy at http://host/corl
-        self.token = token
-        self.raw = bool(raw)
-        self.timeout = float(timeout)
-        self.retry_for = float(retry_for)
+        self.token = None if token is None else text("Client(token)", token, spaces=False, ascii=True, secret=True)
+        self.raw = flag("Client(raw)", raw)
+        self.timeout = number("Client(timeout)", timeout, low=0.0, low_open=True)
+        self.retry_for = number("Client(retry_for)", retry_for, low=0.0)
         self._conn: http.client.HTTPConnection | None = None
         self._trial: Trial | None = None
         self._last: dict | None = None  # the latest status the server sent (a tell's answer carries it)
@@ -129,14 +138,16 @@ class Client:
             success, value, extra = outcome.success, outcome.return_, dict(outcome.info)
         else:
             success, value, extra = outcome, return_, {}
-        if info:
-            extra.update(info)
+        success = flag("tell(success)", success)
+        value = None if value is None else number("tell(return_)", value)
+        if info is not None and not isinstance(info, dict):
+            raise InputError(f"tell(info=...) must be a dict of JSON values, got {type(info).__name__}")
+        extra.update(info or {})
         if trial is None:
             if self._trial is None:
                 raise StateError("tell() without ask(): ask for a trial first, run it, then tell its outcome")
             trial = self._trial.index
-        body = {"trial": int(trial), "success": bool(success) if isinstance(success, (bool, np.bool_)) else success,
-                "return": None if value is None else float(value), "info": extra}
+        body = {"trial": integer("tell(trial)", trial), "success": success, "return": value, "info": extra}
         answer = self._request("POST", "/tell", body)
         self._last = answer
         return answer
@@ -165,7 +176,7 @@ class Client:
 
     def trials(self, since: int = 0) -> list[dict]:
         """``GET /trials``: every trial from index ``since`` on."""
-        return self._request("GET", f"/trials?since={int(since)}")["trials"]
+        return self._request("GET", f"/trials?since={integer('trials(since)', since)}")["trials"]
 
     def close(self) -> None:
         if self._conn is not None:
@@ -192,7 +203,11 @@ class Client:
         headers = {"Accept": "application/json"}
         data = None
         if body is not None:
-            data = json.dumps(body, allow_nan=False).encode("utf-8")
+            try:
+                data = json.dumps(body, allow_nan=False).encode("utf-8")
+            except (TypeError, ValueError) as exc:  # an info with NaN, an array, an object
+                raise InputError(f"{path.lstrip('/')}: its info cannot be sent as JSON ({exc}); give strings, "
+                                 "finite numbers, booleans, None, lists and dicts") from None
             headers["Content-Type"] = "application/json"
         if self.token is not None:
             headers["Authorization"] = f"Bearer {self.token}"
