@@ -97,3 +97,22 @@ def test_corl_budget_spends_every_trial_in_any_unit_and_never_below_the_band():
     assert runs[0][0] == 40 and opt.stop_reason is corl.StopReason.BUDGET
     assert all(r[:2] == runs[0][:2] and np.allclose(r[2], runs[0][2], atol=1e-9) for r in runs)
     assert runs[0][1] <= plain.failures + 5
+
+
+@pytest.mark.parametrize("method", ["PIBU", "UCB", "SAL", "CORL", "CMA"])
+def test_returns_at_the_edge_of_the_float_range_leave_every_method_asking(method):
+    """Finite returns of +-1.7e308: their difference (and a success less a mean of the other sign)
+    overflows. PIBU, UCB and SAL raised 'prior_mean must be finite, got nan' at every later ask."""
+    from corl.optimizers.registry import make_optimizer
+
+    opt = make_optimizer(method, ([0, 0], [1, 1]), [0.5, 0.5])
+    told = [(True, 1.7e308), (True, -1.7e308), (True, 1.7e308), (True, -1.7e308), (False, None), (True, 1.0)]
+    asked = 0
+    for outcome in told + [(True, 0.5)] * 3:
+        if opt.done:
+            break
+        x = opt.ask()
+        assert np.all(np.isfinite(x))
+        opt.tell(x, outcome)
+        asked += 1
+    assert asked >= 5 and (not opt.done or opt.stop_reason is not None)  # asking, or stopped by its own rule

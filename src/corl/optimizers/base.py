@@ -90,7 +90,9 @@ def model_returns(values: np.ndarray, fitted: bool) -> np.ndarray:
         from corl.gp.fitting import standardisation
 
         mean, scale = standardisation(v)
-        return (v - mean) / scale
+        with np.errstate(over="ignore"):
+            z = (v - mean) / scale
+        return z if np.all(np.isfinite(z)) else v / scale - mean / scale  # v - mean past 1.8e308: scale first
     return v / model_scale(v)
 
 
@@ -111,7 +113,7 @@ def failure_score(returns: np.ndarray, failure_return: float | None) -> float:
         return 0.0  # nothing succeeded: every score is this one, and standardised it is 0 anyway
     low, high = float(np.min(r)), float(np.max(r))
     gap = high - low if high > low else (abs(low) or 1.0)
-    return low - gap
+    return max(low - gap, -float(np.finfo(float).max))  # a range of +-1.7e308 overflows: the lowest float
 
 
 def score_of(outcome: Outcome, failure_return: float) -> float:
