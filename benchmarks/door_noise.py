@@ -13,7 +13,7 @@ CORL+PIBU; every trial committed to a run store in a temporary folder; rollouts 
   by the run's seed: ``corl run door --seed S --return-noise SIGMA --flip Q``.
 
 One row per run: trials; failures as reported and as they truly were; the learner's best theta
-and its reported return; its true return (the best ``w`` rolled out again on the noiseless door);
+and the return it reports for it (``best.return_``); its true return (the best ``w`` rolled out again on the noiseless door);
 ``J_final`` (the best ``w``'s J), ``J`` of the demonstration and their ratio; seconds. Then the
 mean per sensor. ``OPENBLAS_NUM_THREADS=1`` is set before numpy is imported, as ``make`` does.
 """

@@ -249,9 +249,12 @@ class StoredRun:
         and so does a machine where the fork fails. ``callback(proposal, outcome)`` may then run while
         that candidate is computed: let it read the proposal, the outcome and ``best``, never the task.
         """
+        from corl.tasks.noisy import NoisyTask
         from corl.tasks.worker import RolloutWorker, wants_worker
 
         learner = self.learner
+        if isinstance(task, NoisyTask):  # a w tried before reads its next values, resumed or not (and in the worker)
+            task.recount(p.w for p, _ in self.history)
         rollouts = None
         # vars(): a learner of its own that speculates (CORL), not one that passes attributes on (ContextualCORL)
         if worker and wants_worker(task) and "speculative" in vars(learner):

@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 
 from corl.cli import app
 from corl.errors import InputError
-from corl.problem import Outcome, check_task
+from corl.problem import Outcome, Proposal, check_task
 from corl.session import StoredRun
 from corl.store import RunStore
 from corl.tasks import NoisyTask
@@ -80,21 +80,76 @@ def test_a_failure_without_a_return_and_the_demonstration_never_flip():
                for s in range(100))
 
 
-def test_readings_are_a_function_of_seed_and_w_alone():
+def test_readings_are_a_function_of_seed_w_and_its_repeats_alone():
     ws = safe_ws(50)
     task = NoisyTask(Measured(), return_noise=0.2, flip=0.3, seed=7)
     first = [task.rollout(w) for w in ws]
-    assert [task.rollout(w) for w in ws[::-1]] == first[::-1]  # order and earlier rollouts do not matter
-    for other in (NoisyTask(Measured(), return_noise=0.2, flip=0.3, seed=7), pickle.loads(pickle.dumps(task)),
-                  copy.copy(task)):
+    fresh = NoisyTask(Measured(), return_noise=0.2, flip=0.3, seed=7)
+    assert [fresh.rollout(w) for w in ws[::-1]] == first[::-1]  # the order of the w's does not matter
+    for other in (pickle.loads(pickle.dumps(fresh)), copy.copy(fresh)):  # the counts travel with a copy
+        assert [other.rollout(w) for w in ws] != first
+        other.recount([])
         assert [other.rollout(w) for w in ws] == first
-    with RolloutWorker(task) as worker:  # a forked worker reads what the parent would
-        assert [worker.rollout(w) for w in ws] == first
     reseeded = [NoisyTask(Measured(), return_noise=0.2, flip=0.3, seed=8).rollout(w) for w in ws]
     assert sum(a.return_ == b.return_ for a, b in zip(first, reseeded)) < 5
     exact = NoisyTask(Measured(), seed=7)  # the same draws: only their scale differs
     assert all(o.success == e.success == e.info["true_success"] and e.return_ == e.info["true_return"]
                for o, e in zip(first, (exact.rollout(w) for w in ws)) if not o.info["flipped"])
+
+
+def test_a_repeated_trial_reads_afresh_and_a_recount_goes_on_where_a_run_stopped():
+    w, other = safe_ws(2)
+    task = NoisyTask(SyntheticTask(), return_noise=0.3, seed=1)
+    readings = [task.rollout(w).return_ for _ in range(N // 4)]
+    assert len(set(readings)) == len(readings) and np.std(readings) == pytest.approx(0.3, rel=0.1)
+    order = [w, other, w, w, other, w]
+    whole = [o.return_ for o in map(NoisyTask(SyntheticTask(), return_noise=0.3, seed=1).rollout, order)]
+    resumed = NoisyTask(SyntheticTask(), return_noise=0.3, seed=1)  # a new process: the first three were told
+    resumed.recount(order[:3])
+    assert [resumed.rollout(v).return_ for v in order[3:]] == whole[3:]
+    resumed.recount(order[:3])
+    with RolloutWorker(resumed) as worker:  # forked with its counts
+        assert [worker.rollout(v).return_ for v in order[3:]] == whole[3:]
+
+
+class Repeater:
+    """A learner that asks the w's it is given, in order (some more than once), then is done."""
+
+    def __init__(self, ws):
+        self.ws, self.history, self.best, self._asked = ws, [], None, None
+
+    @property
+    def done(self):
+        return len(self.history) == len(self.ws)
+
+    def ask(self):
+        self._asked = Proposal(len(self.history), self.ws[len(self.history)], np.zeros(1), "search")
+        return self._asked
+
+    def tell(self, outcome):
+        self.history.append((self._asked, outcome))
+
+
+def test_stored_run_counts_the_told_trials_of_a_run_before_it_rolls_out(tmp_path):
+    """What `corl run --resume` does: a new process (a new NoisyTask) goes on from the stored trials."""
+    ws = [w for w in safe_ws(4) for _ in range(3)]  # each w three times
+
+    def stored(name):
+        run = StoredRun(Repeater(ws), None, None)
+        run._record = {"task": "synthetic", "method": "repeat", "seed": 0, "config": {}}
+        return run.attach(RunStore(tmp_path / f"{name}.corl"))
+
+    def sensors():
+        return NoisyTask(Forked(), return_noise=0.1, flip=0.2, seed=9)
+
+    whole = stored("whole")
+    whole.run(sensors(), worker=False)
+    killed = stored("killed")
+    killed.run(sensors(), max_trials=5)
+    killed.run(sensors())  # a new task, as after a resume: counted from the 5 told trials
+    assert [o for _, o in killed.history] == [o for _, o in whole.history]
+    returns = [o.return_ for _, o in whole.history if o.return_ is not None]
+    assert len(set(returns)) == len(returns) >= 6  # the repeats read afresh
 
 
 @pytest.mark.parametrize("kwargs, message", [
@@ -228,6 +283,7 @@ def test_the_door_in_a_worker_reads_its_sensors_in_the_child():
     assert check_task(task).rollout_in_worker is True and task.theta_labels == DoorTask.theta_labels
     w0 = task.demonstration().w
     here = task.rollout(w0)
+    task.recount([])  # as before that rollout: the child reads w0's first values too
     with RolloutWorker(task) as worker:
         there = worker.rollout(w0)
     assert here == there and here.success and here.return_ != here.info["true_return"]

@@ -24,16 +24,20 @@ The demonstration is never flipped: Algorithm 1 starts from a demonstration a pe
 ``true_success``, ``true_return`` and ``flipped``.
 
 Reproducible and resumable: ``(u, z)`` come from a generator seeded by ``(seed, a hash of w's
-bytes)``, with no state, so a run gives the same readings every time, in a forked rollout worker
-(:mod:`corl.tasks.worker`) as in the parent, and a run resumed from its store (which replays told
-outcomes and never repeats a rollout) continues with the readings it would have had. The price: the
-same ``w`` rolled out twice reads the same values (a repeated trial does not average the noise away).
+bytes, k)``, ``k`` the number of earlier rollouts of the same ``w`` (the k-th repeat of a trial,
+e.g. a confirmation of the best, reads afresh). Nothing else is kept, so a run gives the same
+readings every time, in a forked rollout worker (:mod:`corl.tasks.worker`) as in one process, and a
+run resumed from its store (which replays told outcomes and never repeats a rollout) continues with
+the readings it would have had: :meth:`corl.session.StoredRun.run` sets the counts from the run's
+trials (:meth:`NoisyTask.recount`) before its first rollout.
 """
 
 from __future__ import annotations
 
 import hashlib
+from collections import Counter
 from dataclasses import dataclass
+from typing import Iterable
 
 import numpy as np
 
@@ -44,7 +48,7 @@ from corl.problem import Outcome, check_task
 __all__ = ["NoisyTask", "SensorNoise", "check_return_noise", "check_flip"]
 
 _STREAM = 0x6E6F6973  # "nois": keeps these draws apart from any other generator seeded by (seed, w)
-_OWN = frozenset({"wrapped", "noise", "_demo_w"})  # the wrapper's own attributes, never forwarded
+_OWN = frozenset({"wrapped", "noise", "_demo_w", "_counts"})  # the wrapper's own attributes, never forwarded
 
 
 def check_return_noise(value, name: str = "return_noise") -> float:
@@ -92,13 +96,18 @@ class SensorNoise:
         """``{"return_noise", "flip", "seed"}``: what ``summary.json`` and the run store record."""
         return {"return_noise": self.return_noise, "flip": self.flip, "seed": self.seed}
 
-    def draws(self, w: np.ndarray) -> tuple[float, float]:
-        """``(u, z)`` of the rollout of ``w`` (n,): ``u ~ U[0, 1)``, ``z ~ N(0, 1)``, a function of
-        ``(seed, w)`` alone."""
-        digest = hashlib.blake2b(np.ascontiguousarray(w, dtype=float).tobytes(), digest_size=8).digest()
+    def draws(self, w: np.ndarray, k: int = 0) -> tuple[float, float]:
+        """``(u, z)`` of the rollout of ``w`` (n,) after ``k`` earlier ones of the same ``w``:
+        ``u ~ U[0, 1)``, ``z ~ N(0, 1)``, a function of ``(seed, w, k)`` alone."""
+        digest = _digest(w)
         key = [self.seed, int.from_bytes(digest[:4], "little"), int.from_bytes(digest[4:], "little"), _STREAM]
-        rng = np.random.default_rng(key)
+        rng = np.random.default_rng(key + [k] if k else key)
         return float(rng.random()), float(rng.standard_normal())
+
+
+def _digest(w) -> bytes:
+    """8 bytes that name ``w`` (n,): a hash of its float64 bytes."""
+    return hashlib.blake2b(np.ascontiguousarray(w, dtype=float).tobytes(), digest_size=8).digest()
 
 
 class NoisyTask:
@@ -124,6 +133,7 @@ class NoisyTask:
         self.noise = SensorNoise(return_noise, flip, seed)
         self.wrapped = check_task(task, "the task NoisyTask wraps")
         self._demo_w: np.ndarray | None = None
+        self._counts: Counter = Counter()  # rollouts per w (its digest) in this process: k of draws()
 
     def __getattr__(self, name: str):
         if name.startswith("__") or name in _OWN:  # not set yet (unpickling, copying): not the task's
@@ -152,6 +162,11 @@ class NoisyTask:
             self._demo_w = np.asarray(self.wrapped.demonstration().w, dtype=float)
         return bool(np.array_equal(np.asarray(w, dtype=float), self._demo_w))
 
+    def recount(self, ws: Iterable[np.ndarray]) -> None:
+        """Forget the rollouts counted so far; count ``ws`` (each (n,)) instead: the trials a run has
+        told, so that a ``w`` tried before reads its next values (:meth:`corl.session.StoredRun.run`)."""
+        self._counts = Counter(_digest(w) for w in ws)
+
     def rollout(self, w: np.ndarray) -> Outcome:
         """The wrapped rollout of ``w`` (n,) as the sensors report it; the truth in ``info``."""
         outcome = self.wrapped.rollout(w)
@@ -161,7 +176,9 @@ class NoisyTask:
         info = dict(outcome.info)
         truth = bool(info.setdefault("true_success", outcome.success))  # a wrapped NoisyTask's truth stays
         info.setdefault("true_return", outcome.return_)
-        u, z = self.noise.draws(w)
+        key = _digest(w)
+        u, z = self.noise.draws(w, self._counts[key])
+        self._counts[key] += 1
         success = outcome.success
         if u < self.noise.flip and (success or outcome.return_ is not None) and not self._is_demonstration(w):
             success = not success
