@@ -58,7 +58,7 @@ def corl(folder: Path, *args: str) -> str:
 
 @pytest.fixture(scope="module")
 def template(tmp_path_factory):
-    """``s.corl``: trial 0 told, trial 1 pending; ``demo.corl``: the demonstration read once as failed and
+    """``s.corl``: trial 0 told, trial 1 pending; ``demo.corl``: the demonstration read twice as failed and
     asked again (start_retries); ``told.corl``: nothing pending; ``fin.corl``: a finished run; all CORL+PIBU
     on the synthetic task, seed 0."""
     folder = tmp_path_factory.mktemp("stores")
@@ -69,8 +69,9 @@ def template(tmp_path_factory):
     corl(folder, "tell", "--store", told, "--task", "synthetic", "--success", "yes", "--return", "0.2")
     shutil.copy(told, s)
     corl(folder, *ask, s)
-    corl(folder, "tell", "--store", demo, "--task", "synthetic", "--success", "no")  # a wrong reading, kept
-    corl(folder, *ask, demo)  # the demonstration asked again
+    for _ in range(2):  # start_retries: two failed readings are kept, the demonstration asked again each time
+        corl(folder, "tell", "--store", demo, "--task", "synthetic", "--success", "no")
+        corl(folder, *ask, demo)
     corl(folder, "run", "synthetic", "--store", fin, "--out", str(folder / "finout"), "--no-video", "-q")
     shutil.rmtree(folder / "trials")
     shutil.rmtree(folder / "finout")

@@ -85,12 +85,14 @@ def test_a_demonstration_that_fails_twice_is_refused_and_the_second_reading_is_n
     with background(tmp_path / "s.corl", "synthetic") as url:
         c = Client(url, raw=True)
         first = c.ask()
-        c.tell(False)  # one failed reading may be wrong: stored, and the demonstration is asked again
+        c.tell(False)  # a failed reading may be wrong: stored, and the demonstration is asked again (twice)
         again = c.ask()
         assert again.index == 1 and np.array_equal(again.w, first.w)
+        c.tell(False)
+        assert c.ask().index == 2
         with pytest.raises(InputError, match="demonstration failed"):  # HTTP 400
             c.tell(False)
-        assert c.status()["pending"] == 1 and c.status()["trials"] == 1
+        assert c.status()["pending"] == 2 and c.status()["trials"] == 2
 
 
 def test_a_task_without_reference_needs_raw_and_a_task_with_one_gets_its_trajectory(tmp_path):

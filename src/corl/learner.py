@@ -53,7 +53,7 @@ import numpy as np
 from corl import checks
 from corl.errors import DemonstrationFailedError, InputError, StateError
 from corl.loop import drive
-from corl.optimizers.base import BlackBoxOptimizer, StopReason
+from corl.optimizers.base import START_RETRIES, BlackBoxOptimizer, StopReason
 from corl.problem import Bounds, Outcome, Proposal, Task
 from corl.realise import check_demonstration, feasible, motion_problem, realise
 from corl.trajectory.solver import SolverConfig, solve
@@ -78,7 +78,7 @@ class CORLConfig:
     rollout_every_step: bool = True
     reuse_data: bool = True
     max_phase_steps: int = 0  # phase steps (Eq. 10) after the trajectory steps; needs task.spline
-    start_retries: int = 1  # a failed demonstration is rolled out again this often before the run refuses it
+    start_retries: int = START_RETRIES  # a failed demonstration is rolled out again this often before it is refused
     solver: SolverConfig = field(default_factory=SolverConfig)
     demo_tolerance: float = 1e-3  # the demonstration needs max|h(w0, theta0)| <= this, in h's units
 

@@ -62,6 +62,8 @@ class MethodSettings:
     failure_return : the return a safety-blind method is told for a failure.
     ucb_kappa, cma_sigma0 : UCB's exploration weight (>= 0); CMA-ES's initial step in the unit box (> 0).
     seib : the acquisition settings of ``CORL``'s black-box step (:class:`SEIBConfig`).
+    confirm, label_noise : for a robot whose readings err (:class:`corl.OptimizerSettings`): trials that repeat
+        the black-box step's best before it stops, and how often the success sensor errs (0: not declared).
     theta_scale : per-dimension unit of theta distances in the stopping rules (None: theta's own
         units; else one positive number per dimension of theta). A task whose length scales are
         stretched per dimension (ARD) gives the same stretch here, so that "near a sampled point"
@@ -77,6 +79,8 @@ class MethodSettings:
     cma_sigma0: float = 0.3
     theta_scale: tuple[float, ...] | None = None
     seib: SEIBConfig = field(default_factory=SEIBConfig)
+    confirm: int = 0  # CORL: trials that repeat the black-box step's best before it stops (noisy returns)
+    label_noise: float = 0.0  # CORL: how often the success sensor errs, if known (a stop one failure decides is rechecked)
 
     def __post_init__(self) -> None:
         for name, kind in (("regression", RegressionConfig), ("classifier", ClassifierConfig), ("corl", CORLConfig),
@@ -90,6 +94,9 @@ class MethodSettings:
             "MethodSettings.direct_budget (trials of a method over w, the demonstration included)",
             self.direct_budget, low=2))
         object.__setattr__(self, "failure_return", checks.number("MethodSettings.failure_return", self.failure_return))
+        object.__setattr__(self, "confirm", checks.integer("MethodSettings.confirm", self.confirm))
+        object.__setattr__(self, "label_noise", checks.number("MethodSettings.label_noise (how often the success "
+                                                              "sensor errs)", self.label_noise, low=0.0, high=0.49))
         object.__setattr__(self, "ucb_kappa", checks.number("MethodSettings.ucb_kappa", self.ucb_kappa, low=0.0))
         object.__setattr__(self, "cma_sigma0", checks.number("MethodSettings.cma_sigma0", self.cma_sigma0, low=0.0,
                                                              low_open=True))
@@ -112,7 +119,8 @@ class MethodSettings:
         return OptimizerSettings(regression=self.regression, classifier=self.classifier,
                                  failure_return=self.failure_return, ucb_kappa=self.ucb_kappa,
                                  cma_sigma0=self.cma_sigma0, stop_distance=1e-3, step_distance=self.corl.eps_theta,
-                                 distance_scale=self.theta_scale, seib=self.seib)
+                                 distance_scale=self.theta_scale, seib=self.seib, confirm=self.confirm,
+                                 label_noise=self.label_noise)
 
 
 #: The paper's synthetic benchmark (Sec. VIII-A, Fig. 1): its fixed GP values (in its own units)

@@ -70,7 +70,7 @@ def test_a_failing_start_of_a_safe_method_is_an_error_that_keeps_the_optimizer()
     with pytest.raises(InputError, match="start .* failed") as info:
         corl.optimize(synthetic, (LOW, HIGH), [3.0], budget=10)
     opt = info.value.optimizer
-    assert opt.stop_reason is StopReason.NO_SAFE_POINT and opt.n_evals == 2  # the start, and once more (start_retries)
+    assert opt.stop_reason is StopReason.NO_SAFE_POINT and opt.n_evals == 3  # the start, and twice more (start_retries)
     opt.tell([0.5], synthetic([0.5]))  # usable: a success lets it go on
     assert not opt.done
     # a method that ignores safety just goes on from a failing start

@@ -82,6 +82,7 @@ class OptimizerSettings:
     seib: SEIBConfig = field(default_factory=SEIBConfig)
     start_retries: int = START_RETRIES  # a start reported as failed is asked again this often (safe methods)
     confirm: int = 0  # trials that repeat the best at the end (CORL, PIBU): for noisy returns, before deploying
+    label_noise: float = 0.0  # how often the success sensor errs, if known (CORL: a stop one failure decides is rechecked)
 
     def __post_init__(self) -> None:
         if self.failure_return is not None and not np.isfinite(self.failure_return):
@@ -94,6 +95,10 @@ class OptimizerSettings:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
                 raise InputError(f"OptimizerSettings.{name} must be an integer >= 0, got {v!r}")
+        if not (isinstance(self.label_noise, (int, float, np.integer, np.floating)) and not isinstance(self.label_noise, bool)
+                and 0.0 <= self.label_noise < 0.5):
+            raise InputError(f"OptimizerSettings.label_noise (how often the success sensor errs) must be a number in "
+                             f"[0, 0.5), got {self.label_noise!r}")
         self.seib.check_classifier(self.classifier)  # far_lengthscale needs a fitted g_S: refused here, before a trial
 
     @classmethod
@@ -197,7 +202,8 @@ def _seib(bounds, start, *, budget, rng, settings):
     from corl.optimizers.safe import SAFE_BO_CONFIG, SafeBOOptimizer
 
     config = replace(SAFE_BO_CONFIG, regression=settings.regression, classifier=settings.classifier)
-    return SafeBOOptimizer(bounds, config, settings.seib, max_evals=budget, seed=rng, start=start, **_repeats(settings))
+    return SafeBOOptimizer(bounds, config, settings.seib, max_evals=budget, seed=rng, start=start,
+                           label_noise=settings.label_noise, **_repeats(settings))
 
 
 @register_optimizer("CORL(budget)")  # CORL that spends its whole budget (SafeBOOptimizer._spend), never below the band
@@ -206,7 +212,7 @@ def _seib_budget(bounds, start, *, budget, rng, settings):
 
     config = replace(SAFE_BO_CONFIG, regression=settings.regression, classifier=settings.classifier)
     return SafeBOOptimizer(bounds, config, settings.seib, max_evals=budget, seed=rng, start=start, spend_budget=True,
-                           **_repeats(settings))
+                           label_noise=settings.label_noise, **_repeats(settings))
 
 
 def as_bounds(bounds) -> Bounds:

@@ -21,6 +21,7 @@ import numpy as np
 
 from corl.acquisition import maximize
 from corl.acquisition.safe_ei import SEIB, SEIBConfig
+from corl.errors import InputError
 from corl.gp.classification import GPClassifier, LaplaceConvergenceWarning
 from corl.gp.fitting import fit_classifier
 from corl.optimizers.base import StopReason, model_scale
@@ -46,10 +47,17 @@ BAND_SEEDS_FROM_DIM = 5
 #: A lone success among failures (a failure read as a success) fails it; a success with a second
 #: success nearby, or a repeat of the same theta, passes. The start, given as known to succeed, is exempt.
 P_TRUSTED = 0.5
-#: ... or a second success (another trial, or a repeat) lies within this many of g_S's length scales:
-#: an optimum on the edge of the safe set has failures just beyond it, which pull the probability
-#: without it below P_TRUSTED, but the search has tried beside it before settling there.
-NEARBY = 0.5
+#: Nothing but a repeat tells a success on the edge of the safe set (failures just beyond, successes
+#: just inside) from a failure read as a success there: before CORL stops, a sampled success with a
+#: higher posterior mean than the learner's best, but in doubt, is tried once more (:meth:`_doubted`).
+#: A failure where g_S gave a success probability of at least this when the point was proposed (SEIB's
+#: inner region, where it proposes for expected improvement only) is tried once more before it counts:
+#: with a success sensor that errs, one wrong reading beside the best would carve a hole in the safe set
+#: there. SEIB's inner proposals sit at p = 0.8-0.9; its band, where the edge is mapped, below 0.7.
+P_SURPRISE = 0.7
+#: With ``label_noise`` declared, the failed trials (the most likely successes first) whose reading is
+#: questioned before a stop: what CORL would decide were each one wrong.
+WHAT_IF = 3
 
 
 @dataclass(frozen=True)
@@ -138,13 +146,23 @@ class SafeBOOptimizer(_BayesOpt):
     needs_success = True  # a safe method: stops with NO_SAFE_POINT while every trial failed
 
     def __init__(self, bounds: Bounds, config: BOConfig = SAFE_BO_CONFIG, seib: SEIBConfig = SEIBConfig(), *,
-                 max_evals: int = 100, seed=None, start=None, spend_budget: bool = False, **kwargs) -> None:
+                 max_evals: int = 100, seed=None, start=None, spend_budget: bool = False, label_noise: float = 0.0,
+                 **kwargs) -> None:
         super().__init__(bounds, config, max_evals=max_evals, seed=seed, name="CORL", start=start, **kwargs)
         self.seib = seib
+        if not (isinstance(label_noise, (int, float, np.integer, np.floating)) and not isinstance(label_noise, bool)
+                and 0.0 <= label_noise < 0.5):
+            raise InputError(f"label_noise (how often the success sensor errs) must be a number in [0, 0.5), got "
+                             f"{label_noise!r}")
+        self.label_noise = float(label_noise)
         self.spend_budget = bool(spend_budget)  # CORL(budget): never stop before max_evals (see _spend)
         seib.check_classifier(config.classifier)
         self._models = None
         self._best_cache = None  # (len(X_), LearnersBest)
+        self._asked_p = None  # (x, g_S's success probability there) of the latest proposal
+        self._recheck = None  # a point to try again: it failed where g_S was sure of success
+        self._checks: list[np.ndarray] = []  # points tried again after a surprising failure
+        self._doubts: list[np.ndarray] = []  # successes in doubt tried again before a stop (their failures count)
         self._far_classifier = None  # (points, g_S refitted for the far look) with far_lengthscale
         self._scale = tuple(float(w) for w in bounds.width) if config.distance_scale is None else config.distance_scale
         self._maximizer = config.maximizer  # below BAND_SEEDS_FROM_DIM, without seeds whatever boundary_pairs says
@@ -207,16 +225,15 @@ class SafeBOOptimizer(_BayesOpt):
         return self.models.regression(self.X_[ok], r, keep=False), self.models.classifier(Xs, s, keep=False)
 
     def _trusted(self, i: int, classifier) -> bool:
-        """Trial ``i``'s success is not in doubt: the start, or p >= P_TRUSTED under g_S without trial ``i``."""
+        """Trial ``i``'s success is not in doubt: the start, a repeat that succeeded too, or p >= P_TRUSTED under
+        g_S without trial ``i``."""
         x = self.X_[i]
         if self.start is not None and self._answers(x, self.start):
             return True
         Xs, s = self._safety_data()
+        if np.sum(np.all(np.abs(Xs[s] - x) <= self.answer_tolerance * self.bounds.width, axis=1)) >= 2:
+            return True  # a repeat succeeded too
         model = getattr(classifier, "_model", classifier)  # a _Reuse wraps the decision's fit
-        ls = np.broadcast_to(np.asarray(model.kernel_.lengthscales, dtype=float), x.shape)
-        d = np.linalg.norm((Xs[s] - x) / ls, axis=1)
-        if np.sum(d < NEARBY) >= 2:  # itself and a second success (or a repeat) close by
-            return True
         same = np.flatnonzero(np.all(Xs == x, axis=1) & s)
         others = np.arange(len(Xs)) != (same[0] if same.size else -1)  # every trial but this one
         loo = GPClassifier(model.kernel_, model.prior_mean, warm_start=False)
@@ -225,13 +242,91 @@ class SafeBOOptimizer(_BayesOpt):
             loo.fit(Xs[others], s[others])
         return bool(loo.predict_proba(x[None])[0] >= P_TRUSTED)
 
+    # -- a surprising failure is checked once ----------------------------------------------------
+    def _observe(self, x: np.ndarray, outcome) -> None:
+        """A failure where g_S was sure of success (p >= P_SURPRISE when proposed) is tried once more."""
+        asked = self._asked_p
+        if asked is not None and not outcome.success and self._answers(x, asked[0]) and asked[1] >= P_SURPRISE \
+                and not any(self._answers(x, c) for c in self._checks):
+            self._recheck = np.array(asked[0], dtype=float)
+        self._asked_p = None
+
+    def _rechecked(self) -> list[np.ndarray]:
+        return super()._rechecked() + self._checks
+
     def _propose(self) -> np.ndarray | StopReason:
+        x = self._propose_next()
+        if isinstance(x, np.ndarray):
+            regression, classifier = self._models[1:] if self._models is not None else (None, None)
+            if classifier is not None and self._models[0] == len(self.X_):
+                self._asked_p = (x.copy(), float(classifier.predict_proba(x[None])[0]))
+        return x
+
+    def _propose_next(self) -> np.ndarray | StopReason:
+        if self._recheck is not None:  # the last trial failed where g_S was sure: one wrong reading?
+            x, self._recheck = self._recheck, None
+            self._checks.append(x.copy())
+            return x
         if not np.any(self.success_ & np.isfinite(self.returns_)):  # a safe method does not guess
             return StopReason.NO_SAFE_POINT
         decided = self._seib_decision()
+        if isinstance(decided, StopReason):
+            doubted = self._doubted()
+            if doubted is not None:  # tried once more before the run ends on a best that may be a wrong reading
+                self._doubts.append(doubted.copy())
+                return doubted
+            resting = self._stop_rests_on()
+            if resting is not None:  # a stop that one failed reading decides is checked once (label_noise)
+                self._checks.append(resting.copy())
+                return resting
         if isinstance(decided, StopReason) and self.spend_budget:
             return self._spend()
         return decided
+
+    def _stop_rests_on(self) -> np.ndarray | None:
+        """With ``label_noise`` declared: a failed trial that, read as a success, would keep the search going.
+
+        The search is about to stop. For the WHAT_IF failed trials g_S finds least likely to fail (not
+        the start, none tried again yet), the decision is worked out again with that one reading taken
+        as a success; the first whose decision is a trial is tried again. At most ``label_noise`` times
+        the budget (at least one) per run: a sensor that errs that often errs about that many times.
+        """
+        if self.label_noise <= 0 or len(self._checks) >= max(1, int(np.ceil(self.label_noise * self.max_evals))):
+            return None
+        tried = self._checks + self._doubts + ([] if self.start is None else [self.start])
+        failed = [i for i in np.flatnonzero(~self.success_) if not any(self._answers(self.X_[i], c) for c in tried)]
+        if not failed or self._models is None:
+            return None
+        p = self._models[2].predict_proba(self.X_[failed])
+        saved = (self._models, self._far_classifier, self.last_acquisition)
+        for k in np.argsort(-p, kind="stable")[:WHAT_IF]:
+            self._whatif, self._models, self._far_classifier = int(failed[k]), None, None
+            try:
+                decision = self._seib_decision()
+            finally:
+                self._whatif = None
+                self._models, self._far_classifier, self.last_acquisition = saved
+            if not isinstance(decision, StopReason):
+                return self.X_[failed[k]].copy()
+        return None
+
+    def _doubted(self) -> np.ndarray | None:
+        """A sampled success above the learner's best in posterior mean whose success is in doubt, not yet tried
+        again; None when there is none."""
+        ok = np.flatnonzero(self.success_ & np.isfinite(self.returns_))
+        best = self._learners_best()
+        if best is None:
+            return None
+        regression, classifier = self._fitted_models()
+        if regression is None:
+            return None
+        mean = regression.predict(self.X_[ok])[0] * model_scale(self.returns_[ok])
+        for i in ok[np.argsort(-mean, kind="stable")]:
+            if i == best.index:
+                return None
+            if not any(self._answers(self.X_[i], c) for c in self._doubts + self._checks):
+                return self.X_[i].copy()
+        return None
 
     def _spend(self) -> np.ndarray:
         """CORL(budget), where SEIB would stop: the trial that is safest and teaches the most.
@@ -297,8 +392,9 @@ class SafeBOOptimizer(_BayesOpt):
         ok = self.success_ & np.isfinite(self.returns_)
         r = self.returns_[ok] / model_scale(self.returns_[ok])  # past MODEL_RANGE: a unit the GP can square
         if self._models is None or self._models[0] != len(self.X_):  # fitted once per ask
-            classifier = _Reuse(self.models.classifier(*self._safety_data()))
-            regression = self.models.regression(self.X_[ok], r)
+            keep = self._whatif is None  # a what-if fit leaves the next decision's warm start alone
+            classifier = _Reuse(self.models.classifier(*self._safety_data(), keep=keep))
+            regression = self.models.regression(self.X_[ok], r, keep=keep)
             self._models = (len(self.X_), None if regression is None else _Reuse(regression), classifier)
         regression, classifier = self._models[1:]
         # R^+ is the best posterior mean at the sampled successes, not the largest reading: under
@@ -307,7 +403,16 @@ class SafeBOOptimizer(_BayesOpt):
         if far and self.seib.far_lengthscale is not None:
             classifier = self._far_look_classifier()
         return SEIB(regression, classifier, best, return_scale(r), self.seib, gated=gated,
-                    beyond=beyond, far=far, box=(self.bounds.lower, self.bounds.upper))
+                    beyond=beyond, far=far, box=(self.bounds.lower, self.bounds.upper), noise_std=self._noise_std())
+
+    def _noise_std(self) -> float:
+        """g_R's fitted noise std (model units), or 0 where it was not fitted from the data (fixed GPs, or too
+        few successes: the prior's median is no measurement of the noise)."""
+        regression = self._models[1] if self._models is not None else None
+        if regression is None or not self.models.regression_config.fit_hyperparameters \
+                or self.models.fallback.get("regression", "none"):
+            return 0.0
+        return float(regression.noise_std_)
 
     def _far_look_classifier(self):
         """g_S fitted with the length-scale prior median ``far_lengthscale`` (from scratch, once per ask)."""
