@@ -92,6 +92,8 @@ class Client:
     timeout : seconds one request may take (an ask computes the next trial: give it time).
     retry_for : seconds to keep retrying a request whose connection failed (0: fail at once).
 
+    Notes
+    -----
     Every argument is checked here, and every argument of :meth:`tell` before anything is sent: a
     wrong one raises a one-line :class:`corl.errors.InputError`.
     """

@@ -44,7 +44,6 @@ Decisions beyond the paper (see README):
 
 from __future__ import annotations
 
-import threading
 from dataclasses import dataclass, field
 from typing import Callable, Generator, Iterator
 
@@ -56,6 +55,7 @@ from corl.loop import drive
 from corl.optimizers.base import START_RETRIES, BlackBoxOptimizer, StopReason
 from corl.problem import Bounds, Outcome, Proposal, Task
 from corl.realise import check_demonstration, feasible, motion_problem, realise
+from corl.speculation import _Speculation
 from corl.trajectory.solver import SolverConfig, solve
 
 __all__ = ["CORLConfig", "CORL", "Best", "OptimizerFactory", "best_observed", "cost_of"]
@@ -484,28 +484,3 @@ class CORL:
                 w_star, theta_star, r_star = w, theta, r
         self._best = Best(w_star, theta_star, r_star, cost_of(task, w_star), reading=r_star)
         return w_star, theta_star, r_star, data
-
-
-class _Speculation:
-    """``fn(*args, **kwargs)`` in a thread: :meth:`result` joins it and returns its value or raises its error."""
-
-    def __init__(self, fn, args, kwargs) -> None:
-        self._value, self._error = None, None
-        self._thread = threading.Thread(target=self._run, args=(fn, args, kwargs), name="corl-speculation",
-                                        daemon=True)
-        self._thread.start()
-
-    def _run(self, fn, args, kwargs) -> None:
-        try:
-            self._value = fn(*args, **kwargs)
-        except BaseException as exc:  # re-raised by result(), where the sequential code makes the call
-            self._error = exc
-
-    def join(self) -> None:
-        self._thread.join()
-
-    def result(self):
-        self.join()
-        if self._error is not None:
-            raise self._error
-        return self._value

@@ -19,12 +19,12 @@ from corl.store.records import (
     EmptyStoreError, RunInfo, RunStatus, StoreError, TrialRecord, _as_int, _decode_array, _encode_array, _json, _load_json, _now,
 )
 from corl.store.schema import _SCHEMA, _holds
+from corl.store.wal import _fold_log, _log_holds_data, _sidecar, _wal_header, _writable
 from corl.versions import library_versions
 
 FORMAT_VERSION = 1  # the newest file format this corl reads and the one it writes
 APPLICATION_ID = int.from_bytes(b"corl", "big")  # marks the SQLite file as a corl store
 _BUSY_TIMEOUT_S = 5.0
-_FOLD_TIMEOUT_S = 0.2  # how long close() waits for readers before leaving the log to the next command
 _RESTORE_HINT = "restore it from a copy or start a new store with a different --store path"
 
 
@@ -472,46 +472,7 @@ class RunStore:
         return f"RunStore({str(self.path)!r}, {mode}, {state})"
 
 
-# -- the store at rest: one file -------------------------------------------------------------------
-def _sidecar(path: Path, suffix: str) -> Path:
-    return path.with_name(path.name + suffix)
-
-
-def _writable(path: Path) -> bool:
-    """Whether SQLite can create its -shm beside ``path`` and write ``path``."""
-    return os.access(path.parent, os.W_OK | os.X_OK) and os.access(path, os.W_OK)
-
-
-def _log_holds_data(path: Path) -> bool:
-    try:
-        return _sidecar(path, "-wal").stat().st_size > 0
-    except OSError:
-        return False
-
-
-def _fold_log(db: sqlite3.Connection) -> None:
-    """Checkpoint the write-ahead log into the file, truncate it, and return to a rollback journal.
-
-    Best effort: a reader holding the log open makes SQLite refuse (after a short wait); the
-    trials are safe either way, and the next command that closes the store folds the log.
-    """
-    try:
-        db.execute(f"PRAGMA busy_timeout = {int(1000 * _FOLD_TIMEOUT_S)}")
-        db.execute("PRAGMA wal_checkpoint(TRUNCATE)").fetchall()
-        db.execute("PRAGMA journal_mode = DELETE").fetchall()  # removes the -wal and -shm files
-    except sqlite3.Error:
-        pass
-
-
-def _wal_header(path: Path) -> bool:
-    """Whether the file's header says WAL mode (bytes 18-19 are 2), i.e. it was not closed by this corl."""
-    try:
-        with open(path, "rb") as f:
-            return f.read(20)[18:20] == b"\x02\x02"
-    except OSError:
-        return False
-
-
+# -- the store at rest: one file (the log's helpers: corl.store.wal) -----------------------------------
 def _fold_leftover_log(path: Path) -> None:
     """Before reading: fold the log a killed writer left behind, when no one writes the store now."""
     if not ((_log_holds_data(path) or _wal_header(path)) and _writable(path)):
