@@ -111,3 +111,20 @@ def test_protect_stdout_sends_stray_prints_to_stderr(capsys):
         print("a task that talks")
     captured = capsys.readouterr()
     assert captured.out == "" and "a task that talks" in captured.err
+
+
+@pytest.mark.parametrize("noise", [[], ["--return-noise", "0.05", "--flip", "0.05"]], ids=["clean", "noisy"])
+def test_status_and_summary_name_the_same_learners_best_and_the_best_observed_beside_it(tmp_path, noise):
+    out, store = tmp_path / "run", str(tmp_path / "s.corl")
+    _invoke(["run", "synthetic", "--method", "CORL", "--out", str(out), "--store", store, "--no-video", "-q",
+             *noise])
+    summary = json.loads((out / "summary.json").read_text())
+    status = json.loads(_invoke(["status", "--store", store, "--json"]).stdout)
+    best = status["best"]
+    assert best["theta"] == pytest.approx(summary["best_theta"], rel=1e-12)
+    assert best["return"] == pytest.approx(summary["best_return"], rel=1e-12)
+    assert best["trial"] == summary["best_trial"] and best["return_std"] == summary["best_return_std"]
+    assert status["best_observed"]["return"] == pytest.approx(summary["best_observed"]["return"], rel=1e-12)
+    assert status["best_observed"]["return"] >= best["return"] - 1e-12  # the highest reading, by its name
+    text = _invoke(["status", "--store", store]).stdout
+    assert "learner's best: return" in text and "best observed: reading" in text and "best return" not in text

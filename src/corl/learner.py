@@ -99,10 +99,11 @@ class CORLConfig:
 class Best:
     """The best policy so far: ``w`` (n,), ``theta`` (m,), its return and analytic cost J.
 
-    ``return_`` is the learner's estimate of R(theta): the black-box method's posterior mean when
-    its return model fits the noise (``CORL``), else the reading of the trial (Alg. 1 as published);
-    ``return_std`` is that estimate's standard deviation (NaN when it is a reading) and ``reading``
-    the trial's own reading.
+    ``return_`` is the reading of w*'s trial. With ``CORL`` (whose return model fits the noise) theta*
+    is the learner's best: the sampled theta with the highest posterior mean of R among those the
+    model does not doubt, so the reading is not the luckiest one, and ``return_std`` is one reading's
+    noise (g_R's fitted noise std); with the paper's methods theta* has the highest reading (Alg. 1
+    as published) and ``return_std`` is NaN. ``reading`` repeats the trial's reading.
     """
 
     w: np.ndarray
@@ -475,9 +476,10 @@ class CORL:
             chosen = [c for c in candidates if np.array_equal(c[1], posterior.theta)]
             if chosen:  # the last trial at that theta (a repeat's w is the same projection)
                 w_star, theta_star, r_star = chosen[-1]
-            r_est, r_std = (posterior.mean, posterior.std) if (chosen or np.array_equal(posterior.theta, theta_star)) \
-                else (r_star, float("nan"))
-            self._best = Best(w_star, theta_star, r_est, cost_of(task, w_star), r_std, r_star)
+            # the value: w*'s own reading, +- one reading's noise. theta* was chosen on g_R's posterior, so the
+            # reading is no luckiest one; and g_R's mean at theta* would mix in the readings of earlier w
+            # (step 1 lowers J and changes R at a fixed theta: on the door, 0.49 at a w* that reads 0.57)
+            self._best = Best(w_star, theta_star, r_star, cost_of(task, w_star), optimizer.noise_std_, r_star)
             return w_star, theta_star, r_star, data
         for w, theta, r in candidates:
             if r > r_star:

@@ -108,7 +108,7 @@ def run_text(summary: dict, path: str | Path) -> str:
         lines.append(f"learner's best: return {s['best_return']:+.4f}{std} at theta "
                      f"{[round(v, 4) for v in s['best_theta']]}, J {s['J_final']:.4g}{J0}")
         seen = s.get("best_observed")
-        if seen is not None and seen["trial"] != s.get("best_trial"):
+        if seen is not None and seen["trial"] != s.get("best_trial") and seen["return"] > s["best_return"]:
             lines.append(f"best observed: reading {seen['return']:+.4f} at trial {seen['trial']} (not the learner's best)")
     if s.get("noise"):  # corl run --return-noise / --flip (corl.tasks.NoisyTask)
         n, true = s["noise"], s.get("final_info", {}).get("true_return")

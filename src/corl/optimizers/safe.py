@@ -405,6 +405,13 @@ class SafeBOOptimizer(_BayesOpt):
         return SEIB(regression, classifier, best, return_scale(r), self.seib, gated=gated,
                     beyond=beyond, far=far, box=(self.bounds.lower, self.bounds.upper), noise_std=self._noise_std())
 
+    @property
+    def noise_std_(self) -> float:
+        """g_R's fitted noise std in the return's units at the latest decision, NaN where it was not fitted."""
+        ok = self.success_ & np.isfinite(self.returns_)
+        noise = self._noise_std()
+        return noise * model_scale(self.returns_[ok]) if noise > 0 else float("nan")
+
     def _noise_std(self) -> float:
         """g_R's fitted noise std (model units), or 0 where it was not fitted from the data (fixed GPs, or too
         few successes: the prior's median is no measurement of the noise)."""
