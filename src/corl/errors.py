@@ -33,3 +33,15 @@ class StateError(CorlError, RuntimeError):
 
 class MissingExtraError(CorlError, ImportError):
     """An optional package corl needs for this feature is not installed (``pip install 'corl[extra]'``)."""
+
+
+class TaskError(CorlError):
+    """The task's own code raised inside the learner (its ``cost_residuals``, ``constraint``, ...).
+
+    ``member`` names the task's member that raised, ``trial`` the trial the learner was taking in
+    (or working out), ``detail`` the original error on one line.
+    """
+
+    def __init__(self, message: str, *, member: str, trial: int, detail: str) -> None:
+        super().__init__(message)
+        self.member, self.trial, self.detail = member, trial, detail

@@ -213,13 +213,13 @@ class CORL:
         self.history.append((proposal, outcome))
         if not outcome.success:
             self.failed_w.append(np.array(proposal.w, dtype=float))
-        self.J_history.append((proposal.index, cost_of(self.task, proposal.w)))
         try:
+            self.J_history.append((proposal.index, cost_of(self.task, proposal.w)))
             self._pending = self._gen.send(outcome)
         except StopIteration:
             self._finished = True
         except Exception:
-            self._finished = True  # the trial is recorded in history; the run cannot go on
+            self._finished = True  # the trial is recorded in history; the run cannot go on (J's task code too)
             raise
 
     def settle(self) -> None:

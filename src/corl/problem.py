@@ -27,13 +27,13 @@ from typing import Any, Callable, Mapping, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
-from corl.errors import InputError
+from corl.errors import InputError, TaskError
 from corl.numerics import as_vector
 
 __all__ = ["Bounds", "Outcome", "Proposal", "Demonstration", "Task", "check_theta", "HasMethodSettings",
            "HasTrajectoryProblem", "HasProjectionMetric", "HasSpline", "Retimable", "HasPinnedTimes", "HasReference",
            "HasJointNames", "HasThetaLabels", "RendersComparison", "RollsOutInWorker", "HasContexts", "context_of", "REQUIRED_MEMBERS", "OPTIONAL_MEMBERS",
-           "DEPRECATED_MEMBERS", "constraint_of", "check_task", "check_reference"]
+           "DEPRECATED_MEMBERS", "constraint_of", "check_task", "check_reference", "task_error"]
 
 
 @dataclass(frozen=True)
@@ -357,6 +357,22 @@ def constraint_of(task) -> Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, 
     warnings.warn(f"task '{getattr(task, 'name', '?')}' ({type(task).__name__}) gives h as projection(w, theta); "
                   "rename it to constraint(w, theta) (the old name will be removed)", FutureWarning, stacklevel=2)
     return old
+
+
+def task_error(exc: BaseException, trial: int, doing: str = "as the learner took in") -> TaskError | None:
+    """``exc`` as a :class:`TaskError` naming the task's member that raised it (the outermost frame of its
+    traceback named like a member of :class:`Task` or :data:`OPTIONAL_MEMBERS`) and ``trial``; None when no
+    such frame is in it (then it is no error of the task's code)."""
+    names = {m for m, method in REQUIRED_MEMBERS.items() if method} | set(DEPRECATED_MEMBERS) \
+        | {m for m, (_, method) in OPTIONAL_MEMBERS.items() if method}
+    tb = exc.__traceback__
+    while tb is not None and tb.tb_frame.f_code.co_name not in names:
+        tb = tb.tb_next
+    if tb is None:
+        return None
+    member, detail = tb.tb_frame.f_code.co_name, " ".join(f"{type(exc).__name__}: {exc}".split())[:300]
+    return TaskError(f"the task's {member} raised {detail}, {doing} trial {trial}", member=member, trial=trial,
+                     detail=detail)
 
 
 def check_task(task, source: str = "the task") -> Task:

@@ -23,10 +23,11 @@ from typing import Callable
 
 import numpy as np
 
-from corl.errors import DemonstrationFailedError, InputError, StateError
+from corl.errors import CorlError, DemonstrationFailedError, InputError, StateError, TaskError
 from corl.loop import drive
-from corl.problem import Outcome, Proposal, Task
+from corl.problem import Outcome, Proposal, Task, task_error
 from corl.store import RunStatus, RunStore, StoreError, replay
+from corl.store.resume import way_on
 
 __all__ = ["StoredRun", "trajectory_of", "check_rate", "check_context", "MAX_RATE_HZ"]
 
@@ -97,6 +98,7 @@ class StoredRun:
         self.run_id = run_id
         self._record: dict | None = None  # what create_run stores, for a run not in a store yet
         self._seen: tuple | None = None  # the stored run as it was read: trials, outcomes, status
+        self.ended: dict | None = None  # where the run was ended at a task error (RunStore.set_end), or None
         self.commit_seconds = 0.0  # what the last ask or tell spent committing to the store
 
     # -- creating and reopening ----------------------------------------------------------------
@@ -150,10 +152,13 @@ class StoredRun:
         return cls.new(task, task_spec=task_spec, method=method, seed=seed, corl_overrides=corl_overrides).attach(store)
 
     @classmethod
-    def open(cls, store: RunStore, task: Task, run_id: int | None = None) -> "StoredRun":
+    def open(cls, store: RunStore, task: Task, run_id: int | None = None, *, end_at_error: bool = False) -> "StoredRun":
         """Reopen a run (default: the latest one) and replay its trials into a fresh learner.
 
-        ``store`` may be read-only: the replay only reads; :meth:`attach` a writer to go on.
+        ``store`` may be read-only: the replay only reads; :meth:`attach` a writer to go on. The task's
+        code raising in the replay is a :class:`TaskError`; with ``end_at_error``, one on the follow-up of
+        the run's last told trial (where the run stopped when it ran) ends the run there instead:
+        :attr:`ended` says where and why, and :meth:`attach` records it (``corl run --resume --end-at-error``).
         """
         info = store.run(run_id) if run_id is not None else store.latest_run()
         if info is None:
@@ -170,9 +175,15 @@ class StoredRun:
                                         check_context(task, info.config["context"]), store, upto)
         else:
             learner = _build(task, info.method, seed, info.config.get("corl_overrides"))
-        replay(learner, store, info.id)
+        ended = store.end(info.id)
+        try:
+            replay(learner, store, info.id)
+        except TaskError as exc:
+            if not (end_at_error and exc.trial == info.n_told - 1 == info.n_trials - 1):
+                raise
+            ended = {"trial": exc.trial, "member": exc.member, "error": exc.detail}
         run = cls(learner, store, info.id)
-        run._seen = _snapshot(info)
+        run._seen, run.ended = _snapshot(info), ended
         return run
 
     def attach(self, store: RunStore) -> "StoredRun":
@@ -183,6 +194,8 @@ class StoredRun:
         elif _snapshot(store.run(self.run_id)) != self._seen:
             raise StoreError(f"run {self.run_id} in {store.path} changed while this command read it (another "
                              "process wrote to it); nothing was written: run the command again")
+        if self.ended is not None and store.end(self.run_id) is None:
+            store.set_end(self.run_id, self.ended)
         self.store = store
         return self
 
@@ -222,14 +235,24 @@ class StoredRun:
         self.commit_seconds = time.perf_counter() - t0
         try:
             self.learner.tell(outcome)
-        finally:
-            if self.learner.done:
-                self.store.set_status(self.run_id, RunStatus.FINISHED)
+        except Exception as exc:
+            error = None if isinstance(exc, CorlError) else task_error(exc, pending.index)
+            if error is None:  # corl's own: the learner has ended
+                if self.learner.done:
+                    self.store.set_status(self.run_id, RunStatus.FINISHED)
+                raise
+            # the task's code: the run stays open, to resume once the task is fixed or to end there
+            raise TaskError(f"{error}; the store keeps all {pending.index + 1} told trials. "
+                            f"{way_on(self.store, self.run_id, error)}", member=error.member, trial=error.trial,
+                            detail=error.detail) from exc
+        if self.learner.done:
+            self.store.set_status(self.run_id, RunStatus.FINISHED)
         self.store.set_best(self.run_id, best_record(self.learner))  # what corl status reads as the learner's best
 
     @property
     def done(self) -> bool:
-        return self.learner.done
+        """The learner has finished, or the run was ended at a task error (:attr:`ended`)."""
+        return self.ended is not None or self.learner.done
 
     @property
     def best(self):

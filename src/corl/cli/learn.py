@@ -43,12 +43,15 @@ def run(
     flip: Optional[str] = typer.Option(
         None, "--flip", help="try the task with a flaky success sensor: the probability in [0, 0.5) that a trial's "
                              "success is reported flipped (never the demonstration's; default 0)"),
+    end_at_error: bool = typer.Option(
+        False, "--end-at-error", help="with --resume: where the task's code raised on the run's last told trial, "
+                                      "end the run there (every trial kept, none run) and write its summary"),
 ) -> None:
     """One learning run, every trial committed to the store; writes OUT/summary.json, figures (and with --video
     a video, rendered once after the store is closed: learning never waits for it)."""
     import time
 
-    from corl.errors import CorlError
+    from corl.errors import CorlError, TaskError
     from corl.experiments.run_output import run_summary, run_text, task_extras, write_run_artifacts, write_run_video
     from corl.methods import METHODS
 
@@ -56,6 +59,8 @@ def run(
     check_args(task=("TASK", task), seed=("--seed", seed), folder=("--out", out), store=("--store", store_path))
     if method is not None and method not in METHODS:
         fail(f"unknown method '{method}'; choose from {', '.join(METHODS)}")
+    if end_at_error and not resume:
+        fail("--end-at-error ends the run being resumed; add --resume")
     try:
         sensors = _sensor_flags(return_noise, flip)
     except CorlError as exc:
@@ -65,7 +70,10 @@ def run(
     try:  # every check, the task and the learner (replayed) before the store is opened for writing
         the_task, session, seen = _run_to_continue(task, store_path, resume=resume, method=method, seed=seed,
                                                    rollout_every_step=rollout_every_step, quiet=quiet, context=context,
-                                                   sensors=sensors)
+                                                   sensors=sensors, end_at_error=end_at_error)
+        if end_at_error and session.ended is None:
+            fail(f"run {session.run_id} in {store_path} resumes without an error of the task's code, so there is "
+                 "nothing to end it at: drop --end-at-error to go on with it")
         db = open_store(store_path)
     except CorlError as exc:
         fail(str(exc))
@@ -100,6 +108,8 @@ def run(
             try:
                 session.run(the_task, callback=tick)
                 tracker.update("trials", done=len(session.history), total=len(session.history), note="finished")
+            except TaskError as exc:  # says what the store keeps and the way on
+                fail(str(exc))
             except CorlError as exc:
                 fail(f"{exc} (the store {store_path} keeps every trial so far; resume with --resume)")
             payload = run_summary(the_task, method, seed, session.learner, time.perf_counter() - t0,
@@ -108,6 +118,8 @@ def run(
             payload["run_id"] = session.run_id
             if info.config.get("noise") is not None:  # corl.tasks.NoisyTask: the sensors the trials were read by
                 payload["noise"] = info.config["noise"]
+            if session.ended is not None:  # ended where the task's code raised (--end-at-error)
+                payload["ended"] = session.ended
             payload.update(task_extras(the_task, session.learner))
             tracker.message("writing figures ...")
             payload["files"] = write_run_artifacts(the_task, session.learner, out)
@@ -341,12 +353,12 @@ def _with_sensors(the_task, sensors: dict | None, seed: int):
 
 
 def _run_to_continue(task: str, store_path: Path, *, resume: bool, method, seed, rollout_every_step, quiet: bool,
-                     context=None, sensors: dict | None = None):
+                     context=None, sensors: dict | None = None, end_at_error: bool = False):
     """``(task in the run's scene, StoredRun, seen)`` of ``corl run``: the store's latest run replayed from a
     read-only open (``--resume``), or a new run in no store yet; nothing is written (see StoredRun.attach).
     ``seen``: for a new run in a context, ``(id of the latest run it learned up to,)``; else None.
     ``sensors`` (``--return-noise``, ``--flip``): a new run's task is seen through them; a resumed run keeps
-    its recorded ones, and a flag given with another value is refused."""
+    its recorded ones, and a flag given with another value is refused. ``end_at_error``: see StoredRun.open."""
     from corl.methods import DEFAULT_METHOD
     from corl.session import StoredRun
     from corl.store import RunStatus
@@ -378,7 +390,7 @@ def _run_to_continue(task: str, store_path: Path, *, resume: bool, method, seed,
     the_task = _with_sensors(load_task(task, seed=int(info.seed or 0)), stored_sensors, int(info.seed or 0))
     if context is not None:
         _refuse_other_context(info, store_path, parse_context(the_task, context))
-    return _run_scene(the_task, info), _reopened(the_task, store_path, info), None
+    return _run_scene(the_task, info), _reopened(the_task, store_path, info, end_at_error=end_at_error), None
 
 
 def _refuse_other_context(info, store: Path, c) -> None:
@@ -395,12 +407,12 @@ def _refuse_other_context(info, store: Path, c) -> None:
          f"continue run {info.id}")
 
 
-def _reopened(the_task, store_path: Path, info):
+def _reopened(the_task, store_path: Path, info, *, end_at_error: bool = False):
     """The StoredRun of run ``info``: its trials replayed into a fresh learner, the store opened read-only."""
     from corl.session import StoredRun
 
     with open_store(store_path, readonly=True) as db:
-        return StoredRun.open(db, the_task, info.id)
+        return StoredRun.open(db, the_task, info.id, end_at_error=end_at_error)
 
 
 def _refuse_other_flags(info, *flags: tuple[str, object, object]) -> None:

@@ -33,7 +33,7 @@ def status(store: Path = typer.Option(..., help="run store"),
             if info is None:
                 fail(f"{store} holds no run yet", code=1)
             trials = db.trials(info.id)
-            learners = db.best(info.id)
+            learners, ended = db.best(info.id), db.end(info.id)
     except CorlError as exc:
         fail(str(exc))
     told = [t for t in trials if t.outcome is not None]
@@ -44,7 +44,7 @@ def status(store: Path = typer.Option(..., help="run store"),
     if json_out:
         return print_json({**_run_info(info), "trials": len(trials), "told": len(told),
                            "pending": len(trials) - len(told), "failures": len(told) - len(ok),
-                           "best": learners, "best_observed": seen})
+                           "best": learners, "best_observed": seen, "ended": ended})
     typer.echo(f"run {info.id}: task {info.task}, method {info.method}, seed {info.seed}, {info.status.value}")
     typer.echo(f"trials {len(trials)} (told {len(told)}, pending {len(trials) - len(told)}), "
                f"failures {len(told) - len(ok)}")
@@ -54,6 +54,8 @@ def status(store: Path = typer.Option(..., help="run store"),
                    f"theta {[round(float(v), 6) for v in learners['theta']]}")
     if seen is not None:
         typer.echo(f"best observed: reading {seen['return']:.6g} at trial {seen['trial']}")
+    if ended is not None:  # corl run --resume --end-at-error
+        typer.echo(f"ended at trial {ended['trial']}, where the task's {ended['member']} raised {ended['error']}")
 
 
 def runs(store: Path = typer.Option(..., help="run store"), json_out: bool = JSON_OUT) -> None:

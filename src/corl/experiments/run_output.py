@@ -114,6 +114,9 @@ def run_text(summary: dict, path: str | Path) -> str:
         n, true = s["noise"], s.get("final_info", {}).get("true_return")
         lines.append(f"read through noisy sensors (return noise {n['return_noise']:g}, flip {n['flip']:g})"
                      + ("" if true is None else f": the best trial's true return {true:+.4f}"))
+    if s.get("ended"):  # corl run --resume --end-at-error
+        e = s["ended"]
+        lines.append(f"ended at trial {e['trial']}, where the task's {e['member']} raised {e['error']}")
     files = s.get("files", {})
     lines.append("wrote " + ", ".join([str(path)] + [v for k, v in files.items() if not k.endswith("_skipped")]))
     lines += [f"{k}: {v}" for k, v in files.items() if k.endswith("_skipped")]

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from corl.errors import CorlError, InputError, StateError
+from corl.errors import CorlError, InputError, StateError, TaskError
 from corl.problem import Outcome, Proposal
 from corl.store.records import TrialRecord
 
@@ -223,10 +223,13 @@ class ServedRun:
         except Exception as exc:
             if self.db.pending(self.session.run_id) is not None:
                 raise  # refused before anything was written (a failed demonstration, ...)
-            self.broken = f"the learner raised {type(exc).__name__} after trial {index} was stored"
+            if isinstance(exc, TaskError):  # the task's code: a restart meets it again; the message says what helps
+                self.broken = str(exc)
+            else:
+                self.broken = (f"the learner raised {type(exc).__name__} after trial {index} was stored ({exc}); "
+                               "the store keeps every told trial: restart corl serve on the same store")
             self._told(index, outcome)
-            raise Broken(f"{self.broken} ({exc}); the store keeps every told trial: restart corl serve on "
-                         "the same store") from exc
+            raise Broken(self.broken) from exc
         self._told(index, outcome)
         t1 = time.perf_counter()
         status = self.status
@@ -289,7 +292,7 @@ class ServedRun:
 
     def _usable(self) -> None:
         if self.broken:
-            raise Broken(f"{self.broken}; the store keeps every told trial: restart corl serve on the same store")
+            raise Broken(self.broken)
 
     def _changed(self) -> None:
         self.version += 1
@@ -341,5 +344,8 @@ def _finite(x) -> float | None:
 
 
 def _reason(session) -> str:
+    if session.ended is not None:  # corl run --resume --end-at-error
+        e = session.ended
+        return f"ended at trial {e['trial']}, where the task's {e['member']} raised {e['error']}"
     reason = getattr(session.learner, "stop_reason", None)
     return f"stop reason {getattr(reason, 'value', reason)}"

@@ -21,14 +21,15 @@ On a real robot a trial costs minutes, so the store never loses, repeats or corr
 - :func:`replay` resumes a run exactly: a fresh deterministic learner is asked again for every
   stored trial, must propose the same trial (bit for bit, or within :data:`RESUME_RTOL` when
   another CPU's arithmetic differs in the last bits), continues from the stored proposal (what the
-  robot executed) and is told every stored outcome.
+  robot executed) and is told every stored outcome. A run ended where the task's code raised
+  (``corl run --resume --end-at-error``, :meth:`RunStore.set_end`) replays up to that error.
 
 A run's trials form a prefix: indices 0, 1, ..., d-1 without gaps, every outcome belongs to a
 stored proposal, and only the last trial may be pending (asked, not yet told).
 
 Schema (format 1; ``PRAGMA user_version`` and ``meta.format_version`` hold the format)
 ------------------------------------------------------------------------------------------
-meta(key, value)                                       format_version, created, created_by
+meta(key, value)                  format_version, created, created_by; best:<run>, end:<run> (JSON)
 runs(id, created, task, method, seed, config, versions, status)    config, versions: JSON
 trials(run_id, trial_index, step, round, w, w_shape, theta, theta_shape, proposed_at)
 outcomes(run_id, trial_index, success, return_, info, told_at)     return_ NULL when unobserved

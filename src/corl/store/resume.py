@@ -29,14 +29,14 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from corl.errors import CorlError
-from corl.problem import Outcome, Proposal
+from corl.errors import CorlError, TaskError
+from corl.problem import Outcome, Proposal, task_error
 from corl.store.machine import machine_info
 from corl.store.records import _ARRAY_DTYPE, StoreError
 from corl.store.sqlite import RunStore
 from corl.versions import library_versions, version_differences
 
-__all__ = ["RESUME_RTOL", "AskTellLearner", "replay"]
+__all__ = ["RESUME_RTOL", "AskTellLearner", "replay", "way_on"]
 
 RESUME_RTOL = 1e-6
 
@@ -92,9 +92,12 @@ def replay(learner: AskTellLearner, store: RunStore, run_id: int) -> int:
 
     The learner must be deterministic given its seed and freshly constructed with the run's task,
     method, seed and configuration. Returns the number of outcomes told. Raises
-    :class:`StoreError` naming the likely cause when the learner proposes something else.
+    :class:`StoreError` naming the likely cause when the learner proposes something else, and
+    :class:`TaskError` naming the task's member and the trial when the task's code raises; a run
+    ended there (:meth:`RunStore.set_end`) stops at that error instead, the learner as it left it.
     """
     records = store.trials(run_id)
+    end = store.end(run_id)
     told = 0
     for i, record in enumerate(records):
         problem = None
@@ -102,6 +105,11 @@ def replay(learner: AskTellLearner, store: RunStore, run_id: int) -> int:
             asked = learner.ask()
         except CorlError as exc:
             problem = f"the learner raised {type(exc).__name__} ({exc}) instead of proposing it"
+        except Exception as exc:
+            error = _task_failed(exc, store, run_id, records, i, "as the learner worked out")
+            if error is None:
+                raise
+            raise error from exc
         else:
             stored = record.proposal
             if (asked.index, asked.step, asked.round) != (stored.index, stored.step, stored.round):
@@ -119,9 +127,43 @@ def replay(learner: AskTellLearner, store: RunStore, run_id: int) -> int:
             if i != len(records) - 1:
                 raise StoreError(f"trial {i} of run {run_id} is pending but later trials exist; the store is damaged")
             break
-        learner.tell(record.outcome)
+        try:
+            learner.tell(record.outcome)
+        except CorlError:
+            raise
+        except Exception as exc:
+            if end is not None and end.get("trial") == i:  # where the run was ended: the learner stops as it did
+                return told + 1
+            error = _task_failed(exc, store, run_id, records, i, "as the learner took in")
+            if error is None:
+                raise
+            raise error from exc
         told += 1
     return told
+
+
+def _task_failed(exc: Exception, store: RunStore, run_id: int, records: list, i: int, doing: str) -> TaskError | None:
+    """The :class:`TaskError` of a replay whose learner met ``exc`` at trial ``i``, with the way on; None when
+    ``exc`` did not come from the task's code."""
+    error = task_error(exc, i, doing)
+    if error is None:
+        return None
+    n_told = sum(r.outcome is not None for r in records)
+    if i == len(records) - 1 and records[i].outcome is not None:  # where the run stopped when it ran
+        way = way_on(store, run_id, error)
+    else:
+        way = (f"When the run went on past trial {i}, the task did not raise there: its code has changed since (or "
+               "is not deterministic); restore it as it was, or start a new run")
+    return TaskError(f"cannot resume run {run_id}: {error}; the store keeps all {n_told} told trials. {way}",
+                     member=error.member, trial=error.trial, detail=error.detail)
+
+
+def way_on(store: RunStore, run_id: int, error: TaskError) -> str:
+    """What to do after the task's code raised on the run's last told trial ``error.trial``."""
+    spec = store.run(run_id).config.get("task_spec", "TASK")
+    return (f"Fix the task's {error.member} and resume (corl run --resume, corl ask, or restart corl serve), or end "
+            f"the run at trial {error.trial}, keeping every trial: corl run {spec} --store {store.path} --resume "
+            "--end-at-error")
 
 
 def _divergence_message(store: RunStore, run_id: int, i: int, problem: str) -> str:

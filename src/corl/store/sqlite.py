@@ -294,27 +294,43 @@ class RunStore:
             self._run_status(db, run_id)
             db.execute("UPDATE runs SET status = ? WHERE id = ?", (status.value, run_id))
 
-    # -- the learner's best -----------------------------------------------------------------------
+    # -- what a run keeps beside its trials: the learner's best, how it ended ---------------------
     def set_best(self, run_id: int, best: dict | None) -> None:
         """Keep the learner's best of run ``run_id`` (JSON, :func:`corl.session.best_record`) for readers
         that do not replay the run (``corl status``); written after each told trial, so a crash between
         the two leaves it one trial behind until the run resumes."""
-        run_id = _as_int(run_id, what="run id")
-        text = json.dumps(best, allow_nan=False)
-        with self._transaction(f"keep the best of run {run_id}") as db:
-            self._run_status(db, run_id)
-            db.execute("INSERT OR REPLACE INTO meta (key, value) VALUES (?, ?)", (f"best:{run_id}", text))
+        self._keep(run_id, "best", best)
 
     def best(self, run_id: int) -> dict | None:
         """The learner's best kept by :meth:`set_best`, or None (none kept yet, or a store from before)."""
+        return self._kept(run_id, "best")
+
+    def set_end(self, run_id: int, end: dict) -> None:
+        """Mark run ``run_id`` finished where the task's code raised (``corl run --resume --end-at-error``):
+        ``end`` holds ``trial`` (the last told one; its follow-up raised), ``member`` and ``error``."""
+        self._keep(run_id, "end", end)
+        self.set_status(run_id, RunStatus.FINISHED)
+
+    def end(self, run_id: int) -> dict | None:
+        """How run ``run_id`` was ended by :meth:`set_end`, or None (it was not)."""
+        return self._kept(run_id, "end")
+
+    def _keep(self, run_id: int, key: str, value: dict | None) -> None:
         run_id = _as_int(run_id, what="run id")
-        rows = self._read("SELECT value FROM meta WHERE key = ?", (f"best:{run_id}",))
+        text = json.dumps(value, allow_nan=False)
+        with self._transaction(f"keep the {key} of run {run_id}") as db:
+            self._run_status(db, run_id)
+            db.execute("INSERT OR REPLACE INTO meta (key, value) VALUES (?, ?)", (f"{key}:{run_id}", text))
+
+    def _kept(self, run_id: int, key: str) -> dict | None:
+        run_id = _as_int(run_id, what="run id")
+        rows = self._read("SELECT value FROM meta WHERE key = ?", (f"{key}:{run_id}",))
         if not rows:
             return None
         try:
             value = json.loads(rows[0][0])
         except ValueError:
-            raise self._damaged(f"the best kept for run {run_id} is not JSON") from None
+            raise self._damaged(f"the {key} kept for run {run_id} is not JSON") from None
         return value if isinstance(value, dict) else None
 
     # -- trials --------------------------------------------------------------------------------
