@@ -26,6 +26,7 @@ REFUSE, WORK = "refused", "works"
 def _settings_cases() -> list[tuple[str, str, Callable]]:
     from corl.learner import CORLConfig
     from corl.problem import Bounds
+    from corl.optimizers.registry import OptimizerSettings
     from corl.settings import ClassifierConfig, MethodSettings, RegressionConfig, SEIBConfig, SolverConfig
 
     return [
@@ -51,6 +52,10 @@ def _settings_cases() -> list[tuple[str, str, Callable]]:
         ("SolverConfig(tol_steps=1)", REFUSE, lambda: SolverConfig(tol_steps=1.0)),
         ("Bounds([], [])", REFUSE, lambda: Bounds(np.array([]), np.array([]))),
         ("MethodSettings(corl=CORLConfig(eps_max=.1))", WORK, lambda: MethodSettings(corl=CORLConfig(eps_max=0.1))),
+        ("OptimizerSettings(ucb_kappa=nan)", REFUSE, lambda: OptimizerSettings(ucb_kappa=math.nan)),
+        ("OptimizerSettings(failure_return='x')", REFUSE, lambda: OptimizerSettings(failure_return="x")),
+        ("OptimizerSettings(stop_distance='0.1')", REFUSE, lambda: OptimizerSettings(stop_distance="0.1")),
+        ("OptimizerSettings(cma_sigma0=inf)", REFUSE, lambda: OptimizerSettings(cma_sigma0=math.inf)),
     ]
 
 
@@ -100,6 +105,10 @@ def _optimizer_cases() -> list[tuple[str, str, Callable]]:
         ("CORL learner: tell twice without ask", REFUSE, _learner_two_tells),
         ("make_method(None, task)", REFUSE, lambda: make_method(None, SyntheticTask())),
         ("make_method(settings={})", REFUSE, lambda: make_method("CORL", SyntheticTask(), settings={})),
+        ("make_method('CORL', None)", REFUSE, lambda: make_method("CORL", None)),
+        ("opt.tell(x) without an outcome", REFUSE, lambda: corl.make_optimizer("UCB", box, start).tell(None)),
+        ("optimize(callback=3)", REFUSE, lambda: corl.optimize(lambda x: (True, 1.0), box, start, callback=3)),
+        ("register_optimizer('CORL')", REFUSE, lambda: corl.register_optimizer("CORL")),
         ("returns 1e154, 1e300, -1e300, then ask", WORK, _huge_returns),
         ("optimize(f -> 1e200)", WORK,
          lambda: corl.optimize(lambda x: (True, 1e200 * float(x[0])), box, start, budget=6, seed=0)),

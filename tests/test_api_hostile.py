@@ -300,3 +300,18 @@ def test_no_raw_exception_leaks_from_the_refusals():
     # every refusal above is a CorlError that is also the builtin a caller may catch
     assert issubclass(InputError, CorlError) and issubclass(InputError, ValueError)
     assert issubclass(StateError, CorlError) and issubclass(StateError, RuntimeError)
+
+
+@pytest.mark.parametrize("task", [None, 3, "synthetic"])
+def test_make_method_refuses_a_task_that_is_none(task):
+    with pytest.raises(InputError) as excinfo:
+        make_method("CORL", task)
+    one_line_error(excinfo, "make_method's task", "is not a task")
+
+
+def test_a_learner_run_refuses_a_callback_that_is_no_function():
+    learner = make_method("CORL", SyntheticTask((0.0, 1.2)))
+    with pytest.raises(InputError) as excinfo:
+        learner.run(callback=3)
+    one_line_error(excinfo, "callback must be a function")
+    assert learner.history == []

@@ -22,7 +22,7 @@ import numpy as np
 
 from corl.errors import InputError
 
-__all__ = ["number", "integer", "flag", "text", "lengths", "keywords"]
+__all__ = ["number", "integer", "flag", "text", "function", "lengths", "keywords"]
 
 
 def _is_real(value: Any) -> bool:
@@ -30,17 +30,17 @@ def _is_real(value: Any) -> bool:
 
 
 def number(name: str, value: Any, *, low: float = -math.inf, high: float = math.inf, low_open: bool = False,
-           finite: bool = True) -> float:
+           high_open: bool = False, finite: bool = True) -> float:
     """``value`` as a float: a real number (not a bool or a string), not NaN, finite unless
-    ``finite=False``, within ``[low, high]`` (``(low, high]`` with ``low_open``)."""
+    ``finite=False``, within ``[low, high]`` (an end left out with ``low_open`` / ``high_open``)."""
     if not _is_real(value):
         raise InputError(f"{name} must be a number, got {value!r}")
     v = float(value)
     if math.isnan(v) or (finite and math.isinf(v)):
         raise InputError(f"{name} must be a finite number, got {value!r}")
-    if v < low or v > high or (low_open and v == low):
+    if v < low or v > high or (low_open and v == low) or (high_open and v == high):
         lo = "(" if low_open else "["
-        hi = f"{high:g}]" if math.isfinite(high) else "inf)"
+        hi = f"{high:g}" + (")" if high_open else "]") if math.isfinite(high) else "inf)"
         raise InputError(f"{name} must be in {lo}{low:g}, {hi}, got {value!r}")
     return v
 
@@ -75,6 +75,14 @@ def text(name: str, value: Any, *, spaces: bool = True, ascii: bool = False, sec
         got = f"a {type(value).__name__}" if secret or not isinstance(value, str) else repr(value)
         raise InputError(f"{name} must be {what}, got {got[:80]}")
     return value
+
+
+def function(name: str, value: Any, *, what: str, optional: bool = True) -> Any:
+    """``value`` when it is callable (or None, when ``optional``); ``what`` says what it is called with."""
+    if (value is None and optional) or callable(value):
+        return value
+    alternative = " or None" if optional else ""
+    raise InputError(f"{name} must be a function {what}{alternative}, got {type(value).__name__} {value!r:.40}")
 
 
 def lengths(name: str, value: Any, *, low: float = 0.0) -> float | tuple[float, ...]:

@@ -8,6 +8,7 @@ from typing import Callable
 
 import numpy as np
 
+from corl import checks
 from corl.errors import InputError, RolloutError
 from corl.optimizers.base import BlackBoxOptimizer, StopReason, as_outcome
 from corl.problem import Outcome, Proposal, Task
@@ -25,6 +26,7 @@ def drive(learner, task: Task, *, max_trials: int | None = None,
     :class:`RolloutError`; its trial stays pending, so calling ``drive`` again retries it.
     Returns the number of trials told.
     """
+    checks.function("callback", callback, what="(proposal, outcome) -> None")
     rollout = task.rollout if rollout is None else rollout
     count = 0
     while not learner.done and (max_trials is None or count < max_trials):
@@ -90,6 +92,8 @@ def optimize(f: Callable[[np.ndarray], object], bounds, start, *, method: str = 
     """
     from corl.optimizers.registry import make_optimizer
 
+    checks.function("f", f, what="f(theta) -> Outcome or (success, return)", optional=False)
+    checks.function("callback", callback, what="(theta, outcome) -> None")
     opt = make_optimizer(method, bounds, start, budget=budget, seed=seed, settings=settings)
     while not opt.done:
         x = opt.ask()

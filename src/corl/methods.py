@@ -17,11 +17,12 @@ from typing import Callable
 
 import numpy as np
 
+from corl import checks
 from corl.direct import DirectSearch
 from corl.errors import InputError
 from corl.learner import CORL
 from corl.optimizers.registry import OPTIMIZERS
-from corl.problem import Task
+from corl.problem import Task, check_task
 from corl.settings import MethodSettings  # re-exported: defined below the tasks
 
 __all__ = ["MethodSettings", "METHODS", "PAPER_FIG1", "DEFAULT_METHOD", "USER_SETTINGS", "make_method", "settings_for"]
@@ -81,8 +82,8 @@ def make_method(name: str, task: Task, *, seed: int = 0, settings: MethodSetting
     """
     if not isinstance(name, str) or not (name in METHODS or name.startswith("CORL+")):
         raise InputError(f"unknown method {name!r}; choose one of {', '.join(METHODS)}")
-    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise InputError(f"seed must be an integer >= 0, got {type(seed).__name__} {seed!r:.40}")
+    check_task(task, "make_method's task")
+    seed = checks.integer("seed", seed)
     if settings is None:
         settings = settings_for(task)
     elif not isinstance(settings, MethodSettings):

@@ -96,7 +96,8 @@ class MethodSettings:
         object.__setattr__(self, "failure_return", checks.number("MethodSettings.failure_return", self.failure_return))
         object.__setattr__(self, "confirm", checks.integer("MethodSettings.confirm", self.confirm))
         object.__setattr__(self, "label_noise", checks.number("MethodSettings.label_noise (how often the success "
-                                                              "sensor errs)", self.label_noise, low=0.0, high=0.49))
+                                                              "sensor errs)", self.label_noise, low=0.0, high=0.5,
+                                                              high_open=True))
         object.__setattr__(self, "ucb_kappa", checks.number("MethodSettings.ucb_kappa", self.ucb_kappa, low=0.0))
         object.__setattr__(self, "cma_sigma0", checks.number("MethodSettings.cma_sigma0", self.cma_sigma0, low=0.0,
                                                              low_open=True))

@@ -140,3 +140,84 @@ def test_the_readme_example_prints_what_the_readme_says(capsys):
     theta, ret, reason, trials, failures = printed
     assert f"{float(theta):.4f}" == expected[0].strip("[]") and f"{float(ret):.5f}" == expected[1]
     assert [reason, trials, failures] == expected[2:]
+
+
+# -- every setting and argument checked where it is given (corl.checks) --------------------------
+BAD_SETTINGS = [("ucb_kappa", math.nan, "ucb_kappa must be a finite number"),
+                ("ucb_kappa", math.inf, "ucb_kappa must be a finite number"),
+                ("ucb_kappa", -1.0, "ucb_kappa must be in [0, inf)"),
+                ("cma_sigma0", 0.0, "cma_sigma0 must be in (0, inf)"),
+                ("cma_sigma0", math.nan, "cma_sigma0 must be a finite number"),
+                ("failure_return", "x", "failure_return must be a number, got 'x'"),
+                ("failure_return", -math.inf, "failure_return must be a finite number"),
+                ("stop_distance", "0.1", "stop_distance must be a number, got '0.1'"),
+                ("step_distance", math.inf, "step_distance must be a finite number"),
+                ("distance_scale", (1.0, math.nan), "distance_scale[1] must be a finite number"),
+                ("distance_scale", "ab", "distance_scale must be a positive number or a sequence"),
+                ("confirm", 1.5, "confirm must be a whole number"),
+                ("label_noise", 0.5, "label_noise (how often the success sensor errs) must be in [0, 0.5)"),
+                ("sal", 3, "sal must be a corl.optimizers.sal.SALConfig or None, got int"),
+                ("regression", "fitted", "regression must be a corl.settings.RegressionConfig, got str"),
+                ("ucb_kapa", 1.0, "has no setting 'ucb_kapa'")]
+
+
+@pytest.mark.parametrize("field, value, words", BAD_SETTINGS, ids=[f"{f}={v!r}" for f, v, _ in BAD_SETTINGS])
+def test_optimizer_settings_refuse_a_bad_value_in_one_line(field, value, words):
+    with pytest.raises(InputError) as info:
+        OptimizerSettings(**{field: value})
+    assert "\n" not in str(info.value) and words in str(info.value)
+
+
+@pytest.mark.parametrize("field", ["failure_return", "ucb_kappa", "cma_sigma0", "confirm", "label_noise"])
+@pytest.mark.parametrize("value", [math.nan, math.inf, -1.0, 0.0, 0.3, 0.5, 2.5, "1", True, None])
+def test_a_setting_gets_the_same_answer_from_method_and_optimizer_settings(field, value):
+    from corl.settings import MethodSettings
+
+    answers = []
+    for owner in (MethodSettings, OptimizerSettings):
+        try:
+            owner(**{field: value})
+            answers.append("accepted")
+        except InputError as exc:
+            answers.append(str(exc).replace(owner.__name__, "Settings"))
+    if not (field == "failure_return" and value is None):  # None: the optimizers' units-free failure score
+        assert answers[0] == answers[1]
+
+
+def test_a_built_in_optimizer_is_replaced_only_when_asked():
+    builder = corl.OPTIMIZERS["CORL"]
+    with pytest.raises(InputError, match="'CORL' is one of corl's own optimizers; .* replace=True"):
+        register_optimizer("CORL")
+    assert corl.OPTIMIZERS["CORL"] is builder
+    try:
+        mine = register_optimizer("CORL", replace=True)(lambda *a, **k: builder(*a, **k))
+        assert corl.OPTIMIZERS["CORL"] is mine
+    finally:
+        corl.OPTIMIZERS["CORL"] = builder
+    with pytest.raises(InputError, match="builder of optimizer 'PIBU-test-only' must be a function"):
+        register_optimizer("PIBU-test-only")(3)
+    assert "PIBU-test-only" not in corl.OPTIMIZERS
+
+
+def test_optimize_refuses_f_and_callback_that_are_no_functions_before_any_trial():
+    calls = []
+
+    def f(theta):
+        calls.append(theta)
+        return synthetic(theta)
+
+    with pytest.raises(InputError, match="callback must be a function .* got int 3"):
+        corl.optimize(f, (LOW, HIGH), [0.0], callback=3)
+    with pytest.raises(InputError, match="f must be a function"):
+        corl.optimize(3, (LOW, HIGH), [0.0])
+    assert calls == []
+
+
+def test_an_optimizer_told_without_an_outcome_says_what_to_give():
+    opt = corl.make_optimizer("SAL", (LOW, HIGH), [0.0])
+    for args in ((None,), (Outcome(True, 1.0),)):
+        with pytest.raises(InputError, match=r"takes the point and its outcome, tell\(x, outcome\)"):
+            opt.tell(*args)
+    with pytest.raises(InputError, match="x must be 1 numbers .* got NoneType None"):
+        opt.tell(None, Outcome(True, 1.0))  # not 'NaN' values
+    assert opt.n_evals == 0

@@ -159,12 +159,25 @@ def as_point(x, bounds: Bounds, *, name: str, what: str = "x") -> np.ndarray:
     refused in one line too.
     """
     try:
+        if x is None:  # not NaN: None is no number at all
+            raise TypeError
         return check_theta(x, bounds, task=name)
     except InputError:
         raise
     except (TypeError, ValueError):
         raise InputError(f"{what} must be {bounds.dim} numbers (a point of the box), got "
                          f"{type(x).__name__} {x!r:.60}") from None
+
+
+_MISSING = object()  # tell(x) without an outcome
+
+
+def _told(x, outcome):
+    """``outcome``, or InputError for ``tell(x)`` without one (a learner's tell takes the outcome alone)."""
+    if outcome is _MISSING:
+        raise InputError(f"an optimizer's tell takes the point and its outcome, tell(x, outcome); got only "
+                         f"{type(x).__name__} {x!r:.40} (a learner's tell(outcome) takes the outcome alone)")
+    return outcome
 
 
 def as_outcome(value) -> Outcome:
@@ -261,13 +274,14 @@ class BlackBoxOptimizer(ABC):
         self._handed_out, self._answered = True, None
         return self._proposal.copy()
 
-    def tell(self, x: np.ndarray, outcome) -> None:
+    def tell(self, x: np.ndarray, outcome=_MISSING) -> None:
         """Record the outcome (an :class:`Outcome` or ``(success, return)``) of evaluating ``x`` (m,).
 
         ``x`` need not have been asked. Bad input raises :class:`~corl.errors.InputError`, and a
         second answer to the point told last with no ``ask()`` since raises
         :class:`~corl.errors.StateError`; either records nothing.
         """
+        _told(x, outcome)
         x = as_point(x, self.bounds, name=self.name)
         outcome = as_outcome(outcome)
         asked = self._handed_out and self._proposal is not None and self._answers(x, self._proposal)

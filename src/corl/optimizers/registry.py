@@ -24,6 +24,7 @@ import numpy as np
 
 from corl.acquisition import PIBUConfig, PIBUVariant
 from corl.acquisition.safe_ei import SEIBConfig
+from corl import checks
 from corl.errors import InputError
 from corl.optimizers.base import START_RETRIES, BlackBoxOptimizer, as_point, as_rng
 from corl.optimizers.bo import BOConfig, PIBUOptimizer, StopRule, UCBOptimizer
@@ -44,6 +45,7 @@ FAILURE_RETURN = -15.0  # the paper's constant cost of a failure, in the synthet
 BOX_LENGTHSCALE = 0.1  # GP length scales of a user's box: a tenth of its width per dimension
 
 
+@checks.keywords()
 @dataclass(frozen=True)
 class OptimizerSettings:
     """Everything the black-box methods need besides the box, the start and the budget.
@@ -84,21 +86,33 @@ class OptimizerSettings:
     confirm: int = 0  # trials that repeat the best at the end (CORL, PIBU): for noisy returns, before deploying
     label_noise: float = 0.0  # how often the success sensor errs, if known (CORL: a stop one failure decides is rechecked)
 
-    def __post_init__(self) -> None:
-        if self.failure_return is not None and not np.isfinite(self.failure_return):
-            raise InputError(f"failure_return must be finite, got {self.failure_return}")
-        if not (self.stop_distance >= 0 and self.step_distance >= 0):
-            raise InputError("stop_distance and step_distance must be >= 0")
-        if not isinstance(self.seib, SEIBConfig):
-            raise InputError(f"OptimizerSettings.seib must be a corl.SEIBConfig, got {type(self.seib).__name__}")
-        for name in ("start_retries", "confirm"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0:
-                raise InputError(f"OptimizerSettings.{name} must be an integer >= 0, got {v!r}")
-        if not (isinstance(self.label_noise, (int, float, np.integer, np.floating)) and not isinstance(self.label_noise, bool)
-                and 0.0 <= self.label_noise < 0.5):
-            raise InputError(f"OptimizerSettings.label_noise (how often the success sensor errs) must be a number in "
-                             f"[0, 0.5), got {self.label_noise!r}")
+    def __post_init__(self) -> None:  # every field checked here, as MethodSettings checks its own (corl.checks)
+        for name, kind in (("regression", RegressionConfig), ("classifier", ClassifierConfig), ("seib", SEIBConfig),
+                           ("sal", SALConfig)):
+            value = getattr(self, name)
+            if not isinstance(value, kind) and not (name == "sal" and value is None):
+                where = {SEIBConfig: "corl", SALConfig: "corl.optimizers.sal"}.get(kind, "corl.settings")
+                raise InputError(f"OptimizerSettings.{name} must be a {where}.{kind.__name__}"
+                                 f"{' or None' if name == 'sal' else ''}, got {type(value).__name__}")
+
+        def check(name, checker, *args, **limits):
+            object.__setattr__(self, name, checker(f"OptimizerSettings.{name}", getattr(self, name), *args, **limits))
+
+        if self.failure_return is not None:
+            check("failure_return", checks.number)
+        check("ucb_kappa", checks.number, low=0.0)
+        check("cma_sigma0", checks.number, low=0.0, low_open=True)
+        check("stop_distance", checks.number, low=0.0)
+        check("step_distance", checks.number, low=0.0)
+        if self.distance_scale is not None:
+            check("distance_scale", checks.lengths)
+            if not isinstance(self.distance_scale, tuple):
+                object.__setattr__(self, "distance_scale", (self.distance_scale,))
+        check("start_retries", checks.integer)
+        check("confirm", checks.integer)
+        object.__setattr__(self, "label_noise", checks.number(
+            "OptimizerSettings.label_noise (how often the success sensor errs)", self.label_noise, low=0.0, high=0.5,
+            high_open=True))
         self.seib.check_classifier(self.classifier)  # far_lengthscale needs a fitted g_S: refused here, before a trial
 
     @classmethod
@@ -129,16 +143,27 @@ class OptimizerSettings:
                         distance_scale=self.distance_scale)
 
 
-def register_optimizer(name: str) -> Callable[[Builder], Builder]:
-    """Decorator: ``builder(bounds, start, *, budget, rng, settings) -> BlackBoxOptimizer`` under ``name``."""
-    if not isinstance(name, str) or not name:
-        raise InputError(f"an optimizer name must be a non-empty string, got {name!r}")
+def register_optimizer(name: str, *, replace: bool = False) -> Callable[[Builder], Builder]:
+    """Decorator: ``builder(bounds, start, *, budget, rng, settings) -> BlackBoxOptimizer`` under ``name``.
+
+    A built-in name ("CORL", "PIBU", ...) is refused unless ``replace=True``: every method of that
+    name (``make_optimizer``, ``optimize`` and the paper's methods in ``make_method``) would then build yours.
+    """
+    checks.text("an optimizer name", name)
+    checks.flag("register_optimizer(replace=...)", replace)
+    if name in _BUILT_IN and not replace:
+        raise InputError(f"{name!r} is one of corl's own optimizers; register yours under another name, or pass "
+                         "replace=True to build yours wherever that name is used")
 
     def add(builder: Builder) -> Builder:
-        OPTIMIZERS[name] = builder
+        OPTIMIZERS[name] = checks.function(f"the builder of optimizer {name!r}", builder, optional=False,
+                                           what="(bounds, start, *, budget, rng, settings) -> BlackBoxOptimizer")
         return builder
 
     return add
+
+
+_BUILT_IN: frozenset[str] = frozenset()  # the names registered below, when this module is loaded
 
 
 @register_optimizer("PIBU")
@@ -215,6 +240,9 @@ def _seib_budget(bounds, start, *, budget, rng, settings):
                            label_noise=settings.label_noise, **_repeats(settings))
 
 
+_BUILT_IN = frozenset(OPTIMIZERS)
+
+
 def as_bounds(bounds) -> Bounds:
     """A :class:`Bounds` from a Bounds or a pair ``(lower, upper)``, with a clear error for a flat box."""
     if isinstance(bounds, Bounds):
@@ -264,12 +292,11 @@ def make_optimizer(name: str, bounds, start, *, budget: int = 50, seed=None,
         x0 = as_point(start, box, name=name, what="start")
     except InputError as exc:
         raise InputError(f"the start is not a point of the box: {exc}") from None
-    if isinstance(budget, bool) or not isinstance(budget, (int, np.integer)) or budget < 1:
-        raise InputError(f"budget (trials in all, the start included) must be an integer >= 1, got {budget!r}")
+    budget = checks.integer("budget (trials in all, the start included)", budget, low=1)
     rng = as_rng(seed)
     if settings is None:  # corl's default (CORL, SEIB) learns its GPs from the data
         settings = OptimizerSettings.for_box(box, fitted=name in FITTED_BY_DEFAULT)
     elif not isinstance(settings, OptimizerSettings):
         raise InputError(f"settings must be a corl.OptimizerSettings (e.g. OptimizerSettings.for_box(box)), got "
                          f"{type(settings).__name__}")
-    return OPTIMIZERS[name](box, x0, budget=int(budget), rng=rng, settings=settings)
+    return OPTIMIZERS[name](box, x0, budget=budget, rng=rng, settings=settings)

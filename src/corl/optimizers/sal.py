@@ -27,7 +27,7 @@ import numpy as np
 from corl.acquisition import MaximizerConfig, maximize, upper_confidence_bound
 from corl.errors import InputError
 from corl.numerics import floor_variance, ndtr
-from corl.optimizers.base import BlackBoxOptimizer, StopReason, as_outcome, as_rng, model_returns
+from corl.optimizers.base import _MISSING, BlackBoxOptimizer, StopReason, _told, as_outcome, as_rng, model_returns
 from corl.optimizers.bo import StopRule, _stop
 from corl.optimizers.gpconfig import SYNTHETIC_REGRESSION, ClassifierConfig, ModelFitter, RegressionConfig
 from corl.problem import Bounds
@@ -69,10 +69,10 @@ class SALOptimizer(BlackBoxOptimizer):
         # g_R's MAP fits (with warm starts) when its hyperparameters are fitted; g_S is SAL's own safety GP
         self._fitter = ModelFitter(config.regression, ClassifierConfig(), bounds)
 
-    def tell(self, x, outcome) -> None:
+    def tell(self, x, outcome=_MISSING) -> None:
         """As :meth:`BlackBoxOptimizer.tell`; ``info["boundary_distance"]``, when given on a success,
         must be a finite number (else :class:`~corl.errors.InputError`, nothing recorded)."""
-        outcome = as_outcome(outcome)
+        outcome = as_outcome(_told(x, outcome))
         dist = outcome.info.get("boundary_distance") if outcome.success and outcome.info else None
         if dist is not None:
             try:
