@@ -76,7 +76,7 @@ from corl.optimizers.gpconfig import FITTED_CLASSIFIER, FITTED_REGRESSION, Class
 from corl.optimizers.safe import SafeBOOptimizer  # noqa: E402
 from corl.problem import Bounds, Outcome  # noqa: E402
 
-CORL_METHODS = ("CORL", "PIBU", "PIBU(l=w/10)", "CORL(budget)", "PIBU(budget)", "CORL(label_noise)")  # corl's own, run at --starts
+CORL_METHODS = ("CORL", "PIBU", "PIBU(l=w/10)", "CORL(budget)", "PIBU(budget)", "CORL(declared)")  # corl's own, run at --starts
 PEERS = ("PIBU", "PIBU(l=w/10)", "BoTorch", "SafeOpt")  # what CORL is compared with
 
 
@@ -569,9 +569,9 @@ def run_corl(p, start, budget, seed, sense):
     return _drive(SafeBOOptimizer(p.bounds, max_evals=budget, seed=seed, start=start), sense, start, budget)
 
 
-def run_corl_label_noise(p, start, budget, seed, sense):  # CORL told that its success sensor errs (5 %)
-    return _drive(SafeBOOptimizer(p.bounds, max_evals=budget, seed=seed, start=start, label_noise=0.05), sense, start,
-                  budget)
+def run_corl_declared(p, start, budget, seed, sense):  # CORL told its sensors' noise: the true std and flip rate
+    return _drive(SafeBOOptimizer(p.bounds, max_evals=budget, seed=seed, start=start, label_noise=sense.flip,
+                                  return_noise=sense.noise_std or None), sense, start, budget)
 
 
 def run_corl_budget(p, start, budget, seed, sense):  # CORL(budget): spends every trial, never below the band
@@ -736,7 +736,7 @@ def make_safeopt_runner(python: str):
 # The runs: one task per (problem, method), in this process or in --jobs processes
 # ---------------------------------------------------------------------------------------------
 _RUNNERS = {"CORL": run_corl, "PIBU": run_pibu, "PIBU(l=w/10)": run_pibu_tenth, "CORL(budget)": run_corl_budget,
-            "PIBU(budget)": run_pibu_budget, "BoTorch": run_botorch, "CORL(label_noise)": run_corl_label_noise}
+            "PIBU(budget)": run_pibu_budget, "BoTorch": run_botorch, "CORL(declared)": run_corl_declared}
 _SAFEOPT: dict[str, Callable] = {}  # interpreter -> runner: one SafeOpt process per process of the suite
 
 

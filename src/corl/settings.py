@@ -62,8 +62,9 @@ class MethodSettings:
     failure_return : the return a safety-blind method is told for a failure.
     ucb_kappa, cma_sigma0 : UCB's exploration weight (>= 0); CMA-ES's initial step in the unit box (> 0).
     seib : the acquisition settings of ``CORL``'s black-box step (:class:`SEIBConfig`).
-    confirm, label_noise : for a robot whose readings err (:class:`corl.OptimizerSettings`): trials that repeat
-        the black-box step's best before it stops, and how often the success sensor errs (0: not declared).
+    confirm, label_noise, return_noise : for a robot whose readings err (:class:`corl.OptimizerSettings`):
+        trials that repeat the black-box step's best before it stops, how often the success sensor errs
+        (0: not declared) and a return reading's std in R's units (None: not declared).
     theta_scale : per-dimension unit of theta distances in the stopping rules (None: theta's own
         units; else one positive number per dimension of theta). A task whose length scales are
         stretched per dimension (ARD) gives the same stretch here, so that "near a sampled point"
@@ -81,6 +82,7 @@ class MethodSettings:
     seib: SEIBConfig = field(default_factory=SEIBConfig)
     confirm: int = 0  # CORL: trials that repeat the black-box step's best before it stops (noisy returns)
     label_noise: float = 0.0  # CORL: how often the success sensor errs, if known (a stop one failure decides is rechecked)
+    return_noise: float | None = None  # CORL: a return reading's std in R's units, if known (edges mapped beyond it)
 
     def __post_init__(self) -> None:
         for name, kind in (("regression", RegressionConfig), ("classifier", ClassifierConfig), ("corl", CORLConfig),
@@ -121,7 +123,7 @@ class MethodSettings:
                                  failure_return=self.failure_return, ucb_kappa=self.ucb_kappa,
                                  cma_sigma0=self.cma_sigma0, stop_distance=1e-3, step_distance=self.corl.eps_theta,
                                  distance_scale=self.theta_scale, seib=self.seib, confirm=self.confirm,
-                                 label_noise=self.label_noise)
+                                 label_noise=self.label_noise, return_noise=self.return_noise)
 
 
 #: The paper's synthetic benchmark (Sec. VIII-A, Fig. 1): its fixed GP values (in its own units)

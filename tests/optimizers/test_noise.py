@@ -136,3 +136,25 @@ def test_label_noise_is_checked():
         SafeBOOptimizer(BOX, label_noise=0.5)
     with pytest.raises(InputError, match="label_noise"):
         corl.OptimizerSettings(label_noise=float("nan"))
+
+
+def test_a_declared_return_noise_closes_the_gate_where_the_gain_is_within_it():
+    from corl.acquisition.safe_ei import NOISE_GATE, SEIB
+
+    opt = SafeBOOptimizer(BOX, max_evals=100, seed=0, start=[0.0, 0.0])
+    for x in ([0.0, 0.0], [0.1, 0.0], [0.0, 0.1], [0.15, 0.15], [-0.1, 0.05]):
+        opt.tell(x, Outcome(*_disk(x)))
+    opt.done  # fits the models of the decision
+    plain = opt._acquisition()
+    X = np.random.default_rng(0).uniform(-1, 1, size=(4000, 2))
+    parts = plain.parts(X)
+    gated = parts["band"] & parts["ucb_gate"]
+    assert gated.any()  # without a declared noise some band points may beat R^+
+    mu, var = plain.regression.predict(X[gated])
+    excess = mu + 2.0 * np.sqrt(var) - plain.best_return  # what the gate compares
+    sigma = float(np.max(excess)) / NOISE_GATE * 1.01  # a noise whose NOISE_GATE stds exceed every such gain
+    noisy = SEIB(plain.regression, plain.classifier, plain.best_return, plain.scale, plain.config,
+                 box=plain.box, noise_std=sigma).parts(X)
+    assert not (noisy["band"] & noisy["ucb_gate"]).any()
+    with pytest.raises(InputError, match="return_noise"):
+        SafeBOOptimizer(BOX, return_noise=-1.0)

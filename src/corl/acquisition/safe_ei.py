@@ -132,12 +132,12 @@ REACH = (0.0, 0.25, 0.5, 0.75, 1.0)  # the look beyond the band: ray points up t
 FAR_REACH = (0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0)  # the far look: up to 4 length scales, where g_R has reverted
 FAR_REL = 0.1  # looking far, a tenth of a spread suffices: the ray starts well clear of every failure
 FAR_OPEN = 2.0  # looking far: band point and ray two g_S length scales from failures (untried space, not an edge)
-NOISE_GATE = 2.0  # under noise an edge is mapped only where R may beat R^+ by two of g_R's fitted noise stds:
-#                  with repeated noisy readings beside the best, UCB_R stays a noise std or two above R^+ there,
-#                  and the band next to an optimum on the edge was probed again and again (crescent-2d: 12.6
-#                  true failures per run at 5 % noise, 3.7 clean)
-NOISE_COUNTS = 0.05  # ... once that noise is more than 5 % of the returns' spread: a smooth R fitted without
-#                      noise gives 0.003-0.015 (interpolation error), which must leave clean runs as they were
+NOISE_GATE = 2.0  # with a return noise declared (a sensor's std), an edge is mapped only where R may beat R^+ by
+#                  two of those stds: with noisy readings beside the best, UCB_R stays a noise std or two above R^+
+#                  there, and the band beside an optimum on the edge was probed again and again (crescent-2d: 12.6
+#                  true failures per run at 5 % noise, 3.7 clean). Not from g_R's fitted noise: on clean problems
+#                  with several peaks (bumps-1d, far-edge-3d) g_R often explains the peaks as noise (a fitted noise
+#                  of 0.8 of the returns' spread), and the gate then stopped 3-6 of 20 runs short of the optimum
 FAR_BEHIND = 0.25  # looking far, a failure behind the band point (cosine below -0.25 to the outward normal)
 #                    does not block: it says nothing about the side the ray explores (bumps-1d, 1-D)
 
@@ -306,6 +306,8 @@ class SEIB:
         ``far_rel``, and only band points and ray points ``far_open`` g_S length scales or more
         from every failed trial; the boundary term is weighted by the gain the ray promises.
     box : ``(lower, upper)`` of the search box, (m,) each; ray points outside it do not count.
+    noise_std : a declared std of a return reading, in the returns' units (0: none declared): every gate
+        then asks R to beat R^+ by :data:`NOISE_GATE` of it.
     """
 
     def __init__(self, regression, classifier, best_return: float, scale: float,
@@ -317,9 +319,8 @@ class SEIB:
         self.best_return, self.scale, self.config = float(best_return), float(scale), config
         self.gated, self.beyond, self.far = bool(gated), bool(beyond), bool(far)
         self.box = None if box is None else (np.asarray(box[0], dtype=float), np.asarray(box[1], dtype=float))
-        # the gates' margin for noise: NOISE_GATE fitted noise stds of g_R once the noise counts (NOISE_COUNTS)
-        noisy = np.isfinite(noise_std) and noise_std > NOISE_COUNTS * self.scale
-        self.noise_gate = NOISE_GATE * float(noise_std) if noisy else 0.0
+        # the gates' margin for a declared return noise (NOISE_GATE of its stds; 0 when none is declared)
+        self.noise_gate = NOISE_GATE * float(noise_std) if np.isfinite(noise_std) and noise_std > 0 else 0.0
         self.incumbent = self.best_return  # the gate's R^+: the best posterior mean at the data, <= R^+
         if regression is not None and len(getattr(regression, "X_", ())):
             self.incumbent = min(self.best_return, float(np.max(regression.predict(regression.X_)[0])))

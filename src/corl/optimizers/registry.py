@@ -22,9 +22,9 @@ from typing import Callable
 
 import numpy as np
 
+from corl import checks
 from corl.acquisition import PIBUConfig, PIBUVariant
 from corl.acquisition.safe_ei import SEIBConfig
-from corl import checks
 from corl.errors import InputError
 from corl.optimizers.base import START_RETRIES, BlackBoxOptimizer, as_point, as_rng
 from corl.optimizers.bo import BOConfig, PIBUOptimizer, StopRule, UCBOptimizer
@@ -85,6 +85,7 @@ class OptimizerSettings:
     start_retries: int = START_RETRIES  # a start reported as failed is asked again this often (safe methods)
     confirm: int = 0  # trials that repeat the best at the end (CORL, PIBU): for noisy returns, before deploying
     label_noise: float = 0.0  # how often the success sensor errs, if known (CORL: a stop one failure decides is rechecked)
+    return_noise: float | None = None  # a return reading's std, if known (CORL: edges mapped for gains beyond it)
 
     def __post_init__(self) -> None:  # every field checked here, as MethodSettings checks its own (corl.checks)
         for name, kind in (("regression", RegressionConfig), ("classifier", ClassifierConfig), ("seib", SEIBConfig),
@@ -113,6 +114,9 @@ class OptimizerSettings:
         object.__setattr__(self, "label_noise", checks.number(
             "OptimizerSettings.label_noise (how often the success sensor errs)", self.label_noise, low=0.0, high=0.5,
             high_open=True))
+        if self.return_noise is not None:
+            object.__setattr__(self, "return_noise", checks.number(
+                "OptimizerSettings.return_noise (the std of a return reading, in its units)", self.return_noise, low=0.0))
         self.seib.check_classifier(self.classifier)  # far_lengthscale needs a fitted g_S: refused here, before a trial
 
     @classmethod
@@ -136,6 +140,19 @@ class OptimizerSettings:
         return cls(regression=regression, classifier=ClassifierConfig(lengthscale=ls,
                                                                       signal_std=SYNTHETIC_CLASSIFIER.signal_std),
                    distance_scale=tuple(float(v) for v in width), sal=sal)
+
+    def check_box(self, bounds: Bounds) -> "OptimizerSettings":
+        """Refuse settings whose lengths do not fit ``bounds`` (settings for another box), before any trial;
+        returns self."""
+        m = bounds.dim
+        self.regression.check_dimension(m, "OptimizerSettings.regression")
+        self.classifier.check_dimension(m, "OptimizerSettings.classifier")
+        if self.sal is not None:
+            self.sal.regression.check_dimension(m, "OptimizerSettings.sal.regression")
+        if self.distance_scale is not None and len(self.distance_scale) != m:
+            raise InputError(f"OptimizerSettings.distance_scale has {len(self.distance_scale)} values but the box has "
+                             f"{m} dimensions: settings for another box? (OptimizerSettings.for_box(box) makes them)")
+        return self
 
     def bo(self, stop_rule: StopRule = StopRule.NEAR_SAMPLED) -> BOConfig:
         distance = self.stop_distance if stop_rule is StopRule.NEAR_SAMPLED else self.step_distance
@@ -228,7 +245,8 @@ def _seib(bounds, start, *, budget, rng, settings):
 
     config = replace(SAFE_BO_CONFIG, regression=settings.regression, classifier=settings.classifier)
     return SafeBOOptimizer(bounds, config, settings.seib, max_evals=budget, seed=rng, start=start,
-                           label_noise=settings.label_noise, **_repeats(settings))
+                           label_noise=settings.label_noise, return_noise=settings.return_noise,
+                           **_repeats(settings))
 
 
 @register_optimizer("CORL(budget)")  # CORL that spends its whole budget (SafeBOOptimizer._spend), never below the band
@@ -237,7 +255,8 @@ def _seib_budget(bounds, start, *, budget, rng, settings):
 
     config = replace(SAFE_BO_CONFIG, regression=settings.regression, classifier=settings.classifier)
     return SafeBOOptimizer(bounds, config, settings.seib, max_evals=budget, seed=rng, start=start, spend_budget=True,
-                           label_noise=settings.label_noise, **_repeats(settings))
+                           label_noise=settings.label_noise, return_noise=settings.return_noise,
+                           **_repeats(settings))
 
 
 _BUILT_IN = frozenset(OPTIMIZERS)
@@ -283,7 +302,8 @@ def make_optimizer(name: str, bounds, start, *, budget: int = 50, seed=None,
     Raises
     ------
     InputError : unknown name, a flat box, a start outside it (or not numbers), a budget < 1, a
-        seed that is not an integer >= 0 (or a Generator, or None), settings of another type.
+        seed that is not an integer >= 0 (or a Generator, or None), settings of another type or for a
+        box of another dimension.
     """
     if not isinstance(name, str) or name not in OPTIMIZERS:
         raise InputError(f"unknown optimizer {name!r}; choose one of {', '.join(OPTIMIZERS)}")
@@ -299,4 +319,6 @@ def make_optimizer(name: str, bounds, start, *, budget: int = 50, seed=None,
     elif not isinstance(settings, OptimizerSettings):
         raise InputError(f"settings must be a corl.OptimizerSettings (e.g. OptimizerSettings.for_box(box)), got "
                          f"{type(settings).__name__}")
+    else:
+        settings.check_box(box)
     return OPTIMIZERS[name](box, x0, budget=budget, rng=rng, settings=settings)

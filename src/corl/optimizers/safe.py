@@ -147,7 +147,7 @@ class SafeBOOptimizer(_BayesOpt):
 
     def __init__(self, bounds: Bounds, config: BOConfig = SAFE_BO_CONFIG, seib: SEIBConfig = SEIBConfig(), *,
                  max_evals: int = 100, seed=None, start=None, spend_budget: bool = False, label_noise: float = 0.0,
-                 **kwargs) -> None:
+                 return_noise: float | None = None, **kwargs) -> None:
         super().__init__(bounds, config, max_evals=max_evals, seed=seed, name="CORL", start=start, **kwargs)
         self.seib = seib
         if not (isinstance(label_noise, (int, float, np.integer, np.floating)) and not isinstance(label_noise, bool)
@@ -155,6 +155,11 @@ class SafeBOOptimizer(_BayesOpt):
             raise InputError(f"label_noise (how often the success sensor errs) must be a number in [0, 0.5), got "
                              f"{label_noise!r}")
         self.label_noise = float(label_noise)
+        if return_noise is not None and not (isinstance(return_noise, (int, float, np.integer, np.floating))
+                                             and not isinstance(return_noise, bool) and 0.0 <= return_noise < np.inf):
+            raise InputError(f"return_noise (the std of a return reading, in the return's units) must be a finite "
+                             f"number >= 0 or None, got {return_noise!r}")
+        self.return_noise = None if return_noise is None else float(return_noise)
         self.spend_budget = bool(spend_budget)  # CORL(budget): never stop before max_evals (see _spend)
         seib.check_classifier(config.classifier)
         self._models = None
@@ -403,7 +408,8 @@ class SafeBOOptimizer(_BayesOpt):
         if far and self.seib.far_lengthscale is not None:
             classifier = self._far_look_classifier()
         return SEIB(regression, classifier, best, return_scale(r), self.seib, gated=gated,
-                    beyond=beyond, far=far, box=(self.bounds.lower, self.bounds.upper), noise_std=self._noise_std())
+                    beyond=beyond, far=far, box=(self.bounds.lower, self.bounds.upper),
+                    noise_std=0.0 if self.return_noise is None else self.return_noise / model_scale(self.returns_[ok]))
 
     @property
     def noise_std_(self) -> float:
