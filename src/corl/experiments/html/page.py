@@ -124,15 +124,15 @@ def _cards(report) -> str:
     if report.best_index is not None:
         best = records[report.best_index]
         theta = ", ".join(_fmt(v) for v in best.proposal.theta)
-        cards.append(("highest return", _fmt(best.outcome.return_, 5), f"trial {best.index}, θ ({theta})"))
+        cards.append(("best observed reading", _fmt(best.outcome.return_, 5), f"trial {best.index}, θ ({theta})"))
     else:
-        cards.append(("highest return", "-", "no successful trial yet"))
+        cards.append(("best observed reading", "-", "no successful trial yet"))
     J0 = report.J[0] if len(report.J) else math.nan
     if report.learned_index is not None:
         learned = records[report.learned_index]
         note = f"trial {learned.index}" + ("" if math.isnan(J0) else
                                            f", J {_fmt(J0)} → {_fmt(report.J[report.learned_index])}")
-        cards.append(("learned policy: return", _fmt(learned.outcome.return_, 5), note))
+        cards.append(("learner's best (w*, θ*): return", _fmt(learned.outcome.return_, 5), note))
     elif report.best_index is not None and not math.isnan(J0):
         cards.append(("J: first trial → best", f"{_fmt(J0)} → {_fmt(report.J[report.best_index])}",
                       "analytic cost of w (Eq. 7)"))
@@ -231,8 +231,8 @@ def _trials(report) -> str:
             '<table class="trials"><thead><tr><th class="num">#</th><th class="num">round</th><th>step</th>'
             f'{head}<th>success</th><th class="num">return R</th><th class="num">J(w)</th></tr></thead>'
             f'<tbody>{"".join(rows)}</tbody></table></div>'
-            f'<p class="legend">{legend}. Yellow: the highest return; green edge: the learned policy '
-            "(w*, θ*) the learner returned; red: failures (no return).</p></section>")
+            f'<p class="legend">{legend}. Yellow: the best observed reading; green edge: the learner\'s best '
+            "(w*, θ*), what it returned; red: failures (no return).</p></section>")
 
 
 def _notes(report) -> str:
