@@ -142,6 +142,12 @@ def command_probes(folder: Path, url: str) -> list[Result]:
     shared = folder / "shared.txt"
     shared.write_text(TOKEN + "\n")
     shared.chmod(0o644)
+    accent = folder / "accent.txt"
+    accent.write_text("s3cret-t\u00f6ken-of-the-lab-0123\n", encoding="utf-8")  # no HTTP header can carry it
+    accent.chmod(0o600)
+    fifo = folder / "token.fifo"  # would block a reader until a writer came
+    if not fifo.exists():
+        os.mkfifo(fifo, 0o600)
     busy = socket.socket()
     busy.bind(("127.0.0.1", 0))
     busy.listen(1)
@@ -152,6 +158,10 @@ def command_probes(folder: Path, url: str) -> list[Result]:
                                     "--task", "synthetic"]),
         ("a token file others can read", ["--token-file", str(shared), "--store", "n3.corl", "--task", "synthetic"]),
         ("a token file that is missing", ["--token-file", "nope.txt", "--store", "n4.corl", "--task", "synthetic"]),
+        ("a token file with a non-ASCII character", ["--token-file", str(accent), "--store", "n9.corl", "--task",
+                                                     "synthetic"]),
+        ("a token file that is a FIFO", ["--token-file", str(fifo), "--store", "n10.corl", "--task", "synthetic"]),
+        ("/dev/zero as the token file", ["--token-file", "/dev/zero", "--store", "n11.corl", "--task", "synthetic"]),
         ("a second server on the same store", ["--store", "s.corl", "--task", "synthetic", "--token-file", str(good)]),
         ("a port in use", ["--store", "n5.corl", "--task", "synthetic", "--port", port]),
         ("a task that cannot be imported", ["--store", "n6.corl", "--task", "no_such_module:make"]),

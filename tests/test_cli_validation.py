@@ -59,6 +59,7 @@ BAD_RUNS = [
     (["run", "usertask:not_a_task"], "is not a task: it lacks"),
     (["run", "nosuchmodule:make"], "cannot import"),
     (["run", "usertask:make", "--out", "afile.txt"], "is a file"),
+    (["run", "usertask:make", "--out", "/proc/corl-out"], "--out /proc/corl-out cannot be created"),  # before a trial
     (["run", "usertask:make", "--store", "."], "is a folder"),
     (["bench", "synthetic", "--jobs", "0", "--starts", "1", "--out", "b"], "--jobs must be"),
     (["bench", "synthetic", "--seed", "-1", "--starts", "1", "--out", "b"], "--seed must be"),
@@ -112,6 +113,14 @@ def test_a_refused_run_after_its_store_opened_leaves_no_store(workdir):
                                       "def make_nobox():\n    return NoBox((0.6, 0.4))\n")
     refused(["run", "nobox:make_nobox", "--method", "CMA", "--out", "out"], workdir, "needs task.w_bounds")
     assert not (workdir / "out").exists()
+
+
+def test_a_method_settings_that_raises_is_named_in_one_line(workdir):
+    (workdir / "badsettings.py").write_text(COUNTING + "\nclass BadSettings(Counting):\n"
+                                            "    def method_settings(self):\n        raise KeyError('gp')\n"
+                                            "def make_bad():\n    return BadSettings((0.6, 0.4))\n")
+    refused(["run", "badsettings:make_bad", "--out", "out"], workdir, "method_settings() raised KeyError: 'gp'")
+    assert not (workdir / "rollouts.txt").exists()
 
 
 def test_a_failed_demonstration_is_refused_and_changes_nothing(workdir):

@@ -236,3 +236,79 @@ def test_a_store_that_cannot_commit_is_503_and_the_same_tell_succeeds_later(tmp_
         assert info.value.status == 503 and c.status()["pending"] == 0 and c.status()["broken"] is None
         monkeypatch.undo()
         assert c.tell(outcome)["trials"] == 1
+
+
+def test_a_retell_that_differs_only_in_info_says_so(tmp_path):
+    task = load_task("synthetic")
+    with background(tmp_path / "s.corl", "synthetic") as url:
+        c = Client(url, raw=True)
+        trial = c.ask()
+        outcome = task.rollout(trial.w)
+        c.tell(outcome.success, outcome.return_, info={"force": 1.0})
+        with pytest.raises(StateError, match=r'trial 0 was already told \(success, return .*\) with another info '
+                                             r'\(\{"force": 1.0\}\); a trial is told once, its info included'):
+            c.tell(outcome.success, outcome.return_, trial=0, info={"force": 2.0})
+        assert c.tell(outcome.success, outcome.return_, trial=0, info={"force": 1.0})["repeated"] is True
+
+
+def _bytes_and_mtime(path):
+    return path.read_bytes(), path.stat().st_mtime_ns
+
+
+def test_a_refused_start_leaves_the_store_byte_for_byte(tmp_path, monkeypatch):
+    from typer.testing import CliRunner
+
+    from corl.cli import app
+
+    monkeypatch.chdir(tmp_path)
+    runner = CliRunner()
+    for args in (["--task", "synthetic-context", "--context", "0.1"], ["--task", "synthetic"]):
+        res = runner.invoke(app, ["ask", "--store", f"{args[1]}.corl", "--raw", *args])
+        assert res.exit_code == 0, res.output
+    refusals = [("synthetic-context.corl", "synthetic-context", "learns in a context"),
+                ("synthetic.corl", "door", "is for task 'synthetic'")]
+    for store, task, message in refusals:
+        before = _bytes_and_mtime(tmp_path / store)
+        with pytest.raises(InputError, match=message):
+            with background(tmp_path / store, task):
+                pass
+        assert _bytes_and_mtime(tmp_path / store) == before, store
+
+
+@pytest.mark.parametrize("content, message", [
+    ("t\u00e9st-token-with-an-accent", "printable ASCII characters"),
+    ("x" * 5000, "holds more than 4096 bytes"),
+])
+def test_a_token_file_is_refused_when_no_client_could_send_it(tmp_path, content, message):
+    from corl.serve import read_token
+
+    path = tmp_path / "token.txt"
+    path.write_text(content, encoding="utf-8")
+    path.chmod(0o600)
+    with pytest.raises(InputError, match=message):
+        read_token(path)
+
+
+def test_a_token_file_that_is_no_regular_file_is_refused_at_once(tmp_path):
+    import os
+    import threading
+
+    from corl.serve import read_token
+
+    fifo = tmp_path / "token.fifo"
+    os.mkfifo(fifo, 0o600)
+    answers = []
+    reader = threading.Thread(target=lambda: answers.append(_refusal(read_token, fifo)), daemon=True)
+    reader.start()
+    reader.join(5)
+    assert answers and "is not a regular file" in answers[0]  # not blocked waiting for a writer
+    assert "is not a regular file" in _refusal(read_token, "/dev/zero")  # not read until memory runs out
+
+
+def _refusal(fn, *args) -> str:
+    try:
+        fn(*args)
+    except InputError as exc:
+        return str(exc)
+    return "accepted"
+

@@ -81,6 +81,20 @@ def test_a_half_sent_request_line_is_answered_408_and_closed_after_the_header_ti
         assert 0.4 < took < 2.0 and got == b""
 
 
+@pytest.mark.parametrize("raw", [b"GARBAGE\r\n\r\n", b"GET /status HTTP/1.1\r\nHost: 127.0.0.1\r\nno colon\r\n\r\n",
+                                 b"\x00\x01\x02\r\n\r\n"])
+def test_bytes_that_are_no_http_request_get_a_json_400_and_a_close(tmp_path, raw):
+    with background(tmp_path / "s.corl", "synthetic") as url:
+        with socket.create_connection(_address(url)) as s:
+            s.sendall(raw)
+            took, got = _until_closed(s, 5.0)
+        assert took < 2.0
+        head, _, body = got.partition(b"\r\n\r\n")
+        assert head.startswith(b"HTTP/1.1 400 ") and b"content-type: application/json" in head.lower()
+        assert json.loads(body) == {"error": "Invalid HTTP request received: not a well-formed HTTP/1.1 request"}
+        assert _status(url)[0] == 200  # and the server goes on
+
+
 def test_trickling_headers_a_line_at_a_time_does_not_extend_the_deadline(tmp_path):
     with background(tmp_path / "s.corl", "synthetic", limits=ServeLimits(header_timeout=1.0)) as url:
         with socket.create_connection(_address(url)) as s:
@@ -182,7 +196,21 @@ def test_the_client_waits_out_a_busy_server_and_gives_up_after_retry_for(tmp_pat
         assert 0.9 < time.monotonic() - t0 < 5.0
 
 
-def test_floods_of_bad_requests_write_one_line_per_interval(tmp_path, capfd):
+@pytest.fixture
+def fresh_log():
+    """The once-per-interval log filters forget what earlier tests' servers logged (they are per process)."""
+    import logging
+
+    from corl.serve.limits import OncePerInterval
+
+    for name in ("uvicorn.error", "asyncio"):
+        for f in logging.getLogger(name).filters:
+            if isinstance(f, OncePerInterval):
+                f._last.clear()
+                f._held.clear()
+
+
+def test_floods_of_bad_requests_write_one_line_per_interval(tmp_path, capfd, fresh_log):
     with background(tmp_path / "s.corl", "synthetic") as url:
         for _ in range(30):
             with socket.create_connection(_address(url)) as s:

@@ -164,14 +164,8 @@ NEW_PATHS = NewPaths()
 
 
 def latest_run(path: Path):
-    """The latest :class:`corl.store.RunInfo` of the store at ``path``, read-only; None without a store or run."""
-    from corl.store import RunStore
-    from corl.store.records import EmptyStoreError
+    """The latest :class:`corl.store.RunInfo` of the store at ``path``, read-only; None without a store or run
+    (:func:`corl.store.latest_run`, imported here only when called: this module stays light)."""
+    from corl.store import latest_run as latest
 
-    if not path.is_file():
-        return None
-    try:
-        with RunStore(path, readonly=True) as db:
-            return db.latest_run()
-    except EmptyStoreError:  # created, then killed before its first commit: no run yet
-        return None
+    return latest(path)

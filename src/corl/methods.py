@@ -67,7 +67,12 @@ def settings_for(task: Task) -> MethodSettings:
     Checked against the task's theta (:meth:`MethodSettings.check_task`) before any rollout.
     """
     preset = getattr(task, "method_settings", None)  # corl.problem.HasMethodSettings
-    settings = preset() if callable(preset) else USER_SETTINGS
+    try:
+        settings = preset() if callable(preset) else USER_SETTINGS
+    except Exception as exc:  # the task's own code (or a setting it makes that is refused)
+        raise InputError(f"task '{task.name}': method_settings() raised {type(exc).__name__}: "
+                         f"{' '.join(str(exc).split())[:300]}; fix it (it returns a corl.settings.MethodSettings), "
+                         "or remove it for settings fitted from the data") from exc
     if not isinstance(settings, MethodSettings):
         raise InputError(f"task '{task.name}': method_settings() returned {type(settings).__name__}; "
                          "it must return a corl.settings.MethodSettings")

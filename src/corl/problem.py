@@ -88,9 +88,13 @@ def check_theta(theta, bounds: Bounds, *, task: str = "task", what: str = "theta
     if not np.all(np.isfinite(arr)):
         raise InputError(f"{what} contains NaN or infinite values: {arr}")
     if not bounds.contains(arr):
+        below, above = bounds.lower - arr, arr - bounds.upper  # > 0 where outside (printed to 4 digits, it may not show)
+        j = int(np.argmax(np.maximum(below, above)))
+        side, gap, edge = ("below", below[j], bounds.lower[j]) if below[j] > 0 else ("above", above[j], bounds.upper[j])
         raise InputError(
             f"{what} {np.array2string(arr, precision=4)} is outside the bounds of task '{task}': "
-            f"lower {np.array2string(bounds.lower, precision=4)}, upper {np.array2string(bounds.upper, precision=4)}"
+            f"lower {np.array2string(bounds.lower, precision=4)}, upper {np.array2string(bounds.upper, precision=4)} "
+            f"(coordinate {j}, {float(arr[j])!r}, is {float(gap):.3g} {side} {float(edge)!r})"
         )
     return arr
 

@@ -221,3 +221,19 @@ def test_an_optimizer_told_without_an_outcome_says_what_to_give():
     with pytest.raises(InputError, match="x must be 1 numbers .* got NoneType None"):
         opt.tell(None, Outcome(True, 1.0))  # not 'NaN' values
     assert opt.n_evals == 0
+
+
+def test_settings_for_another_box_are_refused_when_the_optimizer_is_made():
+    three = OptimizerSettings.for_box(Bounds([0.0, 0.0, 0.0], [1.0, 1.0, 1.0]))
+    for name in ("PIBU", "SAL", "CMA"):
+        with pytest.raises(InputError, match="lengthscale has 3 values but theta has 2 dimensions"):
+            corl.make_optimizer(name, ([0.0, 0.0], [1.0, 1.0]), [0.5, 0.5], settings=three)
+    fitted = OptimizerSettings.for_box(Bounds([0.0, 0.0, 0.0], [1.0, 1.0, 1.0]), fitted=True)
+    with pytest.raises(InputError, match="distance_scale has 3 values but the box has 2 dimensions"):
+        corl.make_optimizer("CORL", ([0.0, 0.0], [1.0, 1.0]), [0.5, 0.5], settings=fitted)
+
+
+def test_a_start_just_outside_the_box_says_by_how_much():
+    with pytest.raises(InputError, match=r"\(coordinate 0, 1.000000001, is 1e-09 above 1.0\)"):
+        corl.make_optimizer("CORL", ([0.0, 0.0], [1.0, 1.0]), [1.0 + 1e-9, 0.5])
+

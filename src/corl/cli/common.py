@@ -64,12 +64,19 @@ def _where(exc: BaseException) -> str:
 
 
 def make_folder(flag: str, path: Path) -> None:
-    """Create the output folder ``path`` now, before the long work: a place where nothing can be created
-    (read-only, or refused even to root) exits 2 at once. ``NEW_PATHS`` removes it again on a refusal."""
+    """Create the output folder ``path`` now, before the long work, and write a file in it (removed at once):
+    a place where nothing can be created or written (read-only, or refused even to root, as /proc and /sys
+    are) exits 2 at once. ``NEW_PATHS`` removes the folder again on a refusal."""
+    import tempfile
+
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         fail(f"{flag} {path} cannot be created: {exc.strerror}; choose another {flag}")
+    try:
+        tempfile.TemporaryFile(dir=path).close()
+    except OSError as exc:
+        fail(f"{flag} {path} cannot be written: {exc.strerror}; choose another {flag}")
 
 
 def method_list(methods: Optional[str], *, default: list[str], allowed) -> list[str]:

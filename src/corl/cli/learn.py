@@ -14,7 +14,8 @@ from typing import Optional
 import typer
 
 from corl.arguments import NEW_PATHS, latest_run, plain_number
-from corl.cli.common import JSON_OUT, LOG, QUIET, check_args, fail, open_store, print_json, progress_tracker, write_json
+from corl.cli.common import (JSON_OUT, LOG, QUIET, check_args, fail, make_folder, open_store, print_json,
+                             progress_tracker, write_json)
 from corl.cli.skill import context_text, parse_context, recorded_context, scene_of
 
 __all__ = ["run", "ask", "tell"]
@@ -66,6 +67,7 @@ def run(
     except CorlError as exc:
         fail(str(exc))
     NEW_PATHS.track(out, store_path)
+    make_folder("--out", out)  # where summary.json goes, checked before any trial
     t0 = time.perf_counter()
     try:  # every check, the task and the learner (replayed) before the store is opened for writing
         the_task, session, seen = _run_to_continue(task, store_path, resume=resume, method=method, seed=seed,

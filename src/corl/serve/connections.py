@@ -29,6 +29,8 @@ is read; an unauthenticated body is never read, only drained for ``linger``.
   slow client gives way to a new one. When every connection is being answered, the new one gets 503.
 * **Requests.** Past ``max_requests`` requests in progress, a new request closes the oldest one still
   in ``body``, or gets 503 with ``Retry-After: 1``.
+* **Malformed requests.** Bytes that are no HTTP/1.1 request get 400 with a one-line JSON error, as
+  every other answer (uvicorn answers them in plain text), and the connection is closed.
 * **Accept errors.** When ``accept()`` fails for lack of files anyway, the oldest waiting connections
   are closed to free some, and one line is written per ``log_interval``, where asyncio wrote a
   traceback per attempt.
@@ -52,7 +54,7 @@ __all__ = ["Tracker", "GuardedH11", "protocol_class", "HEAD", "BODY", "LINGER"]
 HEAD, BODY, LINGER = "head", "body", "linger"
 LINGER_S = 1.0  # an answer sent before the body arrived: the client has this long to read it
 _OUT_OF_FILES = (errno.EMFILE, errno.ENFILE, errno.ENOBUFS, errno.ENOMEM)
-_REASONS = {408: "Request Timeout", 503: "Service Unavailable"}
+_REASONS = {400: "Bad Request", 408: "Request Timeout", 503: "Service Unavailable"}
 
 
 def _answer(status: int, message: str) -> tuple[list[tuple[bytes, bytes]], bytes]:
@@ -221,6 +223,15 @@ class GuardedH11(H11Protocol):
             headers, body = _answer(status, message)
             head = b"".join(k + b": " + v + b"\r\n" for k, v in headers)
             self.transport.write(b"HTTP/1.1 %d %s\r\n%s\r\n%s" % (status, _REASONS[status].encode(), head, body))
+        self.transport.close()
+
+    def send_400_response(self, msg: str) -> None:
+        """uvicorn's answer to bytes h11 cannot read as a request, as one line of JSON like every answer
+        (uvicorn's own is plain text), with the connection closed after it."""
+        headers, body = _answer(400, f"{msg.rstrip('.')}: not a well-formed HTTP/1.1 request")
+        for event in (h11.Response(status_code=400, headers=headers, reason=_REASONS[400].encode()),
+                      h11.Data(data=body), h11.EndOfMessage()):
+            self.transport.write(self.conn.send(event))
         self.transport.close()
 
     # -- the request cap -----------------------------------------------------------------------------

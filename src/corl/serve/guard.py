@@ -31,6 +31,7 @@ __all__ = ["MAX_BODY_BYTES", "MIN_TOKEN_CHARS", "COOKIE", "is_loopback", "check_
 
 MAX_BODY_BYTES = 1 << 20  # 1 MiB: a tell with a large info (a force trace) fits; anything larger is refused
 MIN_TOKEN_CHARS = 16
+MAX_TOKEN_FILE_BYTES = 4096  # a token file holds one token (a line of 43 characters from secrets.token_urlsafe)
 COOKIE = "corl_token"
 _TOKEN_HINT = "python3 -c 'import secrets; print(secrets.token_urlsafe(32))' > token.txt"
 
@@ -56,10 +57,13 @@ def is_loopback(host: str) -> bool:
 
 
 def check_token(text: str, where: str = "the token") -> str:
-    """``text`` if it is a usable token: at least 16 printable characters without spaces (InputError)."""
+    """``text`` if it is a usable token: at least 16 printable ASCII characters without spaces (InputError).
+
+    ASCII, as :class:`corl.client.Client` requires: an HTTP header carries no other characters, so a
+    token with an ``é`` could never be sent."""
     if not isinstance(text, str) or len(text) < MIN_TOKEN_CHARS or not text.isprintable() or \
-            any(c.isspace() for c in text):
-        raise InputError(f"{where} must hold one secret of at least {MIN_TOKEN_CHARS} printable characters "
+            not text.isascii() or any(c.isspace() for c in text):
+        raise InputError(f"{where} must hold one secret of at least {MIN_TOKEN_CHARS} printable ASCII characters "
                          f"without spaces; make one: {_TOKEN_HINT}")
     return text
 
@@ -75,11 +79,22 @@ def check_bind(host: str, token: str | None) -> None:
 
 
 def read_token(path: str | Path) -> str:
-    """The token in file ``path`` (surrounding whitespace dropped), checked: at least 16 printable characters."""
+    """The token in file ``path`` (surrounding whitespace dropped), checked: at least 16 printable ASCII
+    characters. The file must be a regular file of at most :data:`MAX_TOKEN_FILE_BYTES` (a FIFO would
+    block, ``/dev/zero`` never end)."""
     path = Path(path)
-    try:
-        mode = path.stat().st_mode
-        text = path.read_text(encoding="utf-8").strip()
+    try:  # opened without blocking (a FIFO would wait for a writer), then the open file itself is looked at
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+        with os.fdopen(fd, "rb") as f:
+            mode = os.fstat(f.fileno()).st_mode
+            if not stat.S_ISREG(mode):
+                raise InputError(f"--token-file {path} is not a regular file; give a file that holds the token "
+                                 f"(make one: {_TOKEN_HINT})")
+            data = f.read(MAX_TOKEN_FILE_BYTES + 1)  # one byte past the cap tells a file that is too long
+        if len(data) > MAX_TOKEN_FILE_BYTES:
+            raise InputError(f"--token-file {path} holds more than {MAX_TOKEN_FILE_BYTES} bytes; a token file holds "
+                             f"one token (make one: {_TOKEN_HINT})")
+        text = data.decode("utf-8").strip()
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"--token-file {path} cannot be read ({getattr(exc, 'strerror', None) or exc}); "
                          f"make one: {_TOKEN_HINT}") from None

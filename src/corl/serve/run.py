@@ -19,6 +19,7 @@ goes on exactly where it stopped: nothing lost, nothing run twice.
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from dataclasses import dataclass
@@ -89,7 +90,7 @@ class ServedRun:
     def _open(self, store_path, task_spec: str, method, seed, rate) -> None:
         from corl.methods import DEFAULT_METHOD, METHODS
         from corl.session import StoredRun, check_rate
-        from corl.store import RunStatus, RunStore
+        from corl.store import RunStatus, RunStore, StoreError, latest_run
         from corl.tasks.registry import BUILTIN_TASKS, load_task
 
         if method is not None and method not in METHODS:
@@ -100,26 +101,32 @@ class ServedRun:
         self.version = 0  # grows with every change a client can see
         self.broken: str | None = None
         self._asked: Proposal | None = None  # asked of the learner, not handed out yet
+        info = latest_run(self.store_path)  # read-only: a refused start leaves the store's bytes as they were
+        if info is not None:
+            for flag, given, stored in (("--method", method, info.method), ("--seed", seed, info.seed)):
+                if given is not None and given != stored:
+                    raise InputError(f"{flag} {given} differs from run {info.id} in {self.store_path} ({stored}); "
+                                     "drop the flag to serve that run, or give another --store")
+            if info.config.get("contextual"):
+                raise InputError(f"run {info.id} in {self.store_path} learns in a context; corl serve serves "
+                                 "runs without one: use corl ask/tell for it, or another --store")
+            self.task = load_task(task_spec, seed=int(info.seed or 0))
+            with RunStore(self.store_path, readonly=True) as db:
+                session = StoredRun.open(db, self.task, info.id)
+        else:
+            seed = 0 if seed is None else seed
+            self.task = load_task(task_spec, seed=seed)
+            method = method or ("CORL+PIBU" if task_spec in BUILTIN_TASKS else DEFAULT_METHOD)
+            session = StoredRun.new(self.task, task_spec=task_spec, method=method, seed=seed)
         self.db = RunStore(self.store_path)  # the writer lock, held until close()
         try:
-            info = self.db.latest_run()
-            if info is not None:
-                for flag, given, stored in (("--method", method, info.method), ("--seed", seed, info.seed)):
-                    if given is not None and given != stored:
-                        raise InputError(f"{flag} {given} differs from run {info.id} in {self.store_path} ({stored}); "
-                                         "drop the flag to serve that run, or give another --store")
-                if info.config.get("contextual"):
-                    raise InputError(f"run {info.id} in {self.store_path} learns in a context; corl serve serves "
-                                     "runs without one: use corl ask/tell for it, or another --store")
-                self.task = load_task(task_spec, seed=int(info.seed or 0))
-                self.session = StoredRun.open(self.db, self.task, info.id)
-                if info.status is not RunStatus.FINISHED and self.session.done:
-                    self.db.set_status(info.id, RunStatus.FINISHED)
-            else:
-                seed = 0 if seed is None else seed
-                self.task = load_task(task_spec, seed=seed)
-                method = method or ("CORL+PIBU" if task_spec in BUILTIN_TASKS else DEFAULT_METHOD)
-                self.session = StoredRun.new(self.task, task_spec=task_spec, method=method, seed=seed).attach(self.db)
+            latest = self.db.latest_run()
+            if (latest and latest.id) != (info and info.id):
+                raise StoreError(f"another process started a run in {self.store_path} meanwhile; nothing was written: "
+                                 "start corl serve again")
+            self.session = session.attach(self.db)  # a run changed since it was read: StoreError
+            if info is not None and info.status is not RunStatus.FINISHED and self.session.done:
+                self.db.set_status(info.id, RunStatus.FINISHED)
             self.info = self.db.run(self.session.run_id)
             pending = self.db.pending(self.session.run_id)
             self.pending: Proposal | None = None if pending is None else pending.proposal
@@ -259,6 +266,10 @@ class ServedRun:
                 and dict(stored.info) == dict(outcome.info))
         if not same:
             told = "success" if stored.success else "failure"
+            if stored.success == outcome.success and stored.return_ == outcome.return_:  # the info alone differs
+                raise Conflict(f"trial {index} was already told ({told}, return {stored.return_}) with another info "
+                               f"({json.dumps(dict(stored.info))[:200]}); a trial is told once, its info included: "
+                               "nothing was changed (a repeat with that info is answered again)")
             raise Conflict(f"trial {index} was already told ({told}, return {stored.return_}); a trial is told once, "
                            "and this tell says otherwise: nothing was changed")
         status = self.status

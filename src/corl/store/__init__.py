@@ -36,8 +36,23 @@ outcomes(run_id, trial_index, success, return_, info, told_at)     return_ NULL 
 ``w``, ``theta``: float64 little-endian bytes; ``*_shape``: JSON list; times: ISO 8601 UTC.
 """
 
-from corl.store.records import RunInfo, RunStatus, StoreError, TrialRecord
+from corl.store.records import EmptyStoreError, RunInfo, RunStatus, StoreError, TrialRecord
 from corl.store.resume import RESUME_RTOL, AskTellLearner, replay
 from corl.store.sqlite import APPLICATION_ID, FORMAT_VERSION, RunStore
 
-__all__ = ["FORMAT_VERSION", "RESUME_RTOL", "RunInfo", "RunStatus", "RunStore", "StoreError", "TrialRecord", "replay"]
+__all__ = ["FORMAT_VERSION", "RESUME_RTOL", "RunInfo", "RunStatus", "RunStore", "StoreError", "TrialRecord", "replay",
+           "latest_run"]
+
+
+def latest_run(path) -> RunInfo | None:
+    """The latest run of the store at ``path``, read without opening it for writing (a command that may
+    still be refused leaves the file's bytes as they were); None without a store or a run in it."""
+    from pathlib import Path
+
+    if not Path(path).is_file():
+        return None
+    try:
+        with RunStore(path, readonly=True) as db:
+            return db.latest_run()
+    except EmptyStoreError:  # created, then killed before its first commit: no run yet
+        return None
