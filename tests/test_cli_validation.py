@@ -123,18 +123,23 @@ def test_a_method_settings_that_raises_is_named_in_one_line(workdir):
     assert not (workdir / "rollouts.txt").exists()
 
 
-def test_a_failed_demonstration_is_refused_and_changes_nothing(workdir):
+def test_a_demonstration_failed_past_its_retries_is_refused_and_changes_nothing(workdir):
     store = asked_store(workdir)
+    tell_no = ["tell", "--store", str(store), "--task", "synthetic", "--success", "no"]
+    for trial in (0, 1):  # start_retries: two failed readings are kept and the demonstration asked again
+        res = runner.invoke(app, tell_no)
+        assert res.exit_code == 0 and json.loads(res.stdout)["trial"] == trial, res.output
+        assert runner.invoke(app, ["ask", "--task", "synthetic", "--raw", "--store", str(store),
+                                   "--out", str(workdir / "trials")]).exit_code == 0
     before = dump(store)
-    refused(["tell", "--store", str(store), "--task", "synthetic", "--success", "no"], workdir,
-            "the demonstration failed")
+    refused(tell_no, workdir, "the demonstration failed 3 times")
     assert dump(store) == before
     status = json.loads(runner.invoke(app, ["status", "--store", str(store), "--json"]).stdout)
-    assert status["status"] == "running" and status["pending"] == 1 and status["told"] == 0
+    assert status["status"] == "running" and status["pending"] == 1 and status["told"] == 2
     res = runner.invoke(app, ["tell", "--store", str(store), "--task", "synthetic", "--success", "yes",
                               "--return", "0.25"])
     assert res.exit_code == 0, res.output
-    assert json.loads(res.stdout) == {"trial": 0, "success": True, "return": 0.25, "done": False}
+    assert json.loads(res.stdout) == {"trial": 2, "success": True, "return": 0.25, "done": False}
 
 
 def test_library_tell_refuses_a_failed_demonstration_before_storing(tmp_path):
@@ -147,12 +152,15 @@ def test_library_tell_refuses_a_failed_demonstration_before_storing(tmp_path):
     task = SyntheticTask((0.6, 0.4))
     with RunStore(tmp_path / "a.corl") as db:
         session = StoredRun.start(db, task, task_spec="synthetic", method="CORL+PIBU", seed=0)
-        session.ask()
-        with pytest.raises(DemonstrationFailedError, match="nothing was stored"):
+        for _ in range(2):  # start_retries: a failed reading is kept, the demonstration asked again
+            session.ask()
             session.tell(Outcome(False))
-        assert db.pending(session.run_id).index == 0 and db.latest_run().status.value == "running"
+        session.ask()
+        with pytest.raises(DemonstrationFailedError, match="the last reading was not stored"):
+            session.tell(Outcome(False))
+        assert db.pending(session.run_id).index == 2 and db.latest_run().status.value == "running"
         session.tell(Outcome(True, 0.5))  # the learner is still usable
-        assert session.ask().index == 1
+        assert session.ask().index == 3
 
 
 def test_an_unexpected_error_is_one_line_from_the_entry_point(workdir, monkeypatch, capsys):
