@@ -124,11 +124,12 @@ def test_with_label_noise_declared_a_stop_that_one_failed_reading_decides_is_che
             opt.tell(x, Outcome(False))
             continue
         opt.tell(x, Outcome(True, float(x[0])) if x[0] < 3.5 else Outcome(False))
-    if label_noise == 0.0:  # the wrong reading stands as the edge of the safe set
-        assert opt.learners_best.theta[0] < 1.1
-    else:  # it is tried again, and the search reaches the true edge
-        assert 3.3 < opt.learners_best.theta[0] < 3.5
-        assert any(np.array_equal(x, flipped) for x in opt.X_[opt.success_])
+    retried = any(np.array_equal(x, flipped) for x in opt.X_[opt.success_])
+    if label_noise == 0.0:  # not declared: the wrong reading stands as the edge of the safe set
+        assert not retried and opt.learners_best.theta[0] < 1.1
+    else:  # declared: the stop rested on that one reading, so it is tried again; the search reaches the edge
+        assert retried and 3.3 < opt.learners_best.theta[0] < 3.5
+        assert len(opt._checks) <= max(1, int(np.ceil(label_noise * opt.max_evals)))  # within its budget
 
 
 def test_label_noise_is_checked():
@@ -158,3 +159,16 @@ def test_a_declared_return_noise_closes_the_gate_where_the_gain_is_within_it():
     assert not (noisy["band"] & noisy["ucb_gate"]).any()
     with pytest.raises(InputError, match="return_noise"):
         SafeBOOptimizer(BOX, return_noise=-1.0)
+
+
+def test_the_budgets_last_trial_repeats_a_best_in_doubt():
+    opt = SafeBOOptimizer(BOX, max_evals=11, seed=0, start=[0.0, 0.0])
+    for x in ([0.0, 0.0], [0.1, 0.0], [0.0, 0.1], [-0.1, 0.0], [0.05, 0.05]):
+        opt.tell(x, Outcome(True, 0.0))
+    for x in ([0.75, 0.75], [0.9, 0.6], [0.6, 0.9], [0.9, 0.9]):
+        opt.tell(x, Outcome(False))
+    opt.tell([0.75, 0.85], Outcome(True, 5.0))  # a failure read as a success, the highest return by far
+    assert opt.n_evals == opt.max_evals - 1
+    assert np.array_equal(opt.ask(), [0.75, 0.85])  # tried again with the last trial
+    opt.tell([0.75, 0.85], Outcome(False))
+    assert opt.done and np.linalg.norm(opt.learners_best.theta - [0.75, 0.85]) > 0.3
