@@ -128,3 +128,14 @@ def test_status_and_summary_name_the_same_learners_best_and_the_best_observed_be
     assert status["best_observed"]["return"] >= best["return"] - 1e-12  # the highest reading, by its name
     text = _invoke(["status", "--store", store]).stdout
     assert "learner's best: return" in text and "best observed: reading" in text and "best return" not in text
+
+
+def test_ask_run_and_serve_give_a_new_run_the_same_default_method(tmp_path):
+    from corl.cli.learn import _default_method
+    from corl.methods import DEFAULT_METHOD
+
+    assert _default_method("synthetic") == "CORL+PIBU" and _default_method("door") == "CORL+PIBU"
+    assert _default_method("examples.planar_button:make_task") == DEFAULT_METHOD == "CORL"
+    store = str(tmp_path / "s.corl")
+    _invoke(["ask", "--task", "examples.planar_button:make_task", "--store", store, "--raw"])
+    assert json.loads(_invoke(["status", "--store", store, "--json"]).stdout)["method"] == "CORL"

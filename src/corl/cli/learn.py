@@ -141,8 +141,9 @@ def run(
 def ask(
     store: Path = typer.Option(..., help="run store"),
     task: str = typer.Option(..., help="the task: 'synthetic' or 'package.module:make_task'"),
-    method: Optional[str] = typer.Option(None, help="method of a new run (default CORL+PIBU); with a run in the "
-                                                    "store, only that run's method is accepted"),
+    method: Optional[str] = typer.Option(None, help="method of a new run (default: CORL+PIBU for the built-in "
+                                                    "tasks, CORL for yours, as corl run and corl serve); with a "
+                                                    "run in the store, only that run's method is accepted"),
     seed: Optional[int] = typer.Option(None, help="seed of a new run (default 0); with a run in the store, only "
                                                   "that run's seed is accepted"),
     rate: float = typer.Option(100.0, help="rate of the written trajectory (Hz)"),
@@ -205,7 +206,8 @@ def _run_to_ask(task: str, store: Path, *, method, seed, raw: bool, rate: float,
         trajectory_of(the_task, np.zeros(1), rate)  # raises the message, before a trial is handed out
     if info is None or (c is not None and not unfinished):
         if c is None:
-            return the_task, StoredRun.new(the_task, task_spec=task, method=method or "CORL+PIBU", seed=seed or 0), None
+            return the_task, StoredRun.new(the_task, task_spec=task, method=method or _default_method(task),
+                                           seed=seed or 0), None
         return scene_of(the_task, c), _new_in_context(the_task, task, store, method=method, seed=seed, context=c,
                                                       overrides=None), info.id if info is not None else None
     session = _reopened(the_task, store, info)
@@ -361,10 +363,9 @@ def _run_to_continue(task: str, store_path: Path, *, resume: bool, method, seed,
     ``seen``: for a new run in a context, ``(id of the latest run it learned up to,)``; else None.
     ``sensors`` (``--return-noise``, ``--flip``): a new run's task is seen through them; a resumed run keeps
     its recorded ones, and a flag given with another value is refused. ``end_at_error``: see StoredRun.open."""
-    from corl.methods import DEFAULT_METHOD
     from corl.session import StoredRun
     from corl.store import RunStatus
-    from corl.tasks.registry import BUILTIN_TASKS, load_task
+    from corl.tasks.registry import load_task
 
     sensors = sensors or {}
     info = latest_run(store_path) if resume else None  # read-only
@@ -381,7 +382,7 @@ def _run_to_continue(task: str, store_path: Path, *, resume: bool, method, seed,
                 _refuse_other_scene(latest, store_path, c, resume_hint=True)
             return scene_of(the_task, c), _new_in_context(the_task, task, store_path, method=method, seed=seed,
                                                           context=c, overrides=overrides), (latest and latest.id,)
-        method = method or ("CORL+PIBU" if task in BUILTIN_TASKS else DEFAULT_METHOD)
+        method = method or _default_method(task)
         return the_task, StoredRun.new(the_task, task_spec=task, method=method, seed=seed,
                                        corl_overrides=overrides), None
     stored_every = info.config.get("corl_overrides", {}).get("rollout_every_step")
@@ -428,3 +429,12 @@ def _refuse_other_flags(info, *flags: tuple[str, object, object]) -> None:
 def _refuse_finished(info, store: Path) -> None:
     fail(f"run {info.id} in {store} has finished, so there is no next trial to ask; 'corl report --store {store} "
          "--out DIR' (or 'corl status') shows its result, and another --store starts a new run")
+
+
+def _default_method(task_spec: str) -> str:
+    """The method a new run gets when none is named, the same for ``corl run``, ``corl ask`` and ``corl serve``:
+    the paper's CORL+PIBU on a built-in task (its figures), corl's CORL on a user's."""
+    from corl.methods import DEFAULT_METHOD
+    from corl.tasks.registry import BUILTIN_TASKS
+
+    return "CORL+PIBU" if task_spec in BUILTIN_TASKS else DEFAULT_METHOD
