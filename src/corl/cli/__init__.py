@@ -35,6 +35,11 @@ for group, name, command in ((bench_app, "synthetic", bench.bench_synthetic), (b
     group.command(name)(refuse_exit(command))  # a task's sys.exit() is an error, not a silent exit
 
 
+#: Optional dependencies (pyproject.toml's extras) by the top-level module a command imports.
+_EXTRAS = {"uvicorn": "serve", "starlette": "serve", "ray": "ray", "dask": "dask", "distributed": "dask",
+           "pyarrow": "parquet", "mkdocs": "docs", "torch": "bench", "botorch": "bench", "casadi": "bench"}
+
+
 def main() -> None:
     """The ``corl`` entry point: a bug that escapes a command prints one line, not a traceback."""
     try:
@@ -42,6 +47,11 @@ def main() -> None:
     except Exception as exc:  # not a usage error: every one of those exits 2 with its own message
         if os.environ.get("CORL_DEBUG"):
             raise
+        extra = _EXTRAS.get((getattr(exc, "name", None) or "").split(".")[0]) if isinstance(exc, ImportError) else None
+        if extra is not None:  # an optional dependency: say which extra brings it
+            typer.echo(f"error: this command needs {exc.name}, part of corl's '{extra}' extra: pip install {exc.name} "
+                       f"(or, in a checkout of corl, pip install -e '.[{extra}]')", err=True)
+            sys.exit(2)
         typer.echo(f"error: internal error {type(exc).__name__}: {exc}. This is a bug in corl or in the task; "
                    "set CORL_DEBUG=1 to see the traceback, and please report it", err=True)
         sys.exit(1)
