@@ -294,7 +294,9 @@ class CORL:
         task, cfg = self.task, self.config
         w0, theta0 = self._demonstration.w, self._demonstration.theta  # checked in __init__
         outcome = yield self._proposal(w0, theta0, self.start_step)
-        for _ in range(cfg.start_retries):  # a failed demonstration may be one wrong reading: try it again
+        # a failed demonstration may be one wrong reading: try it again (a skill's start in a new scene is not:
+        # corl.contexts goes on from its next start, which costs no repeat of a motion that may truly fail)
+        for _ in range(cfg.start_retries if self.start_step == "demonstration" else 0):
             if outcome.success:
                 break
             outcome = yield self._proposal(w0, theta0, self.start_step, again=True)

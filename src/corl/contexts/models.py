@@ -203,33 +203,34 @@ class ContextualModels:
         here = np.hstack([X, np.broadcast_to(self.context, (len(X), self.k))])
         return np.vstack([np.hstack([extra_theta, extra_context]), here])
 
-    def _fit(self, kind: str, fit, **kw):
+    def _fit(self, kind: str, fit, keep: bool = True, **kw):
         """One MAP fit of ``kind`` ("regression" / "classifier") over the joint box, warm-started from
-        the last one; the joint model is kept as ``last_<kind>``."""
+        the last one; the joint model is kept as ``last_<kind>`` (with ``keep``: else nothing changes)."""
         priors = self.regression_priors if kind == "regression" else self.classifier_priors
         res = fit(bounds=self.bounds, priors=priors, warm=self._warm[kind],
                   lengthscale_priors=joint_lengthscale_priors(priors.lengthscale, self.m, self.k), **kw)
-        if not res.fallback:
-            self._warm[kind] = res.log_params
-        self.fallback[kind] = res.fallback
-        setattr(self, f"last_{kind}", res.model)
+        if keep:
+            if not res.fallback:
+                self._warm[kind] = res.log_params
+            self.fallback[kind] = res.fallback
+            setattr(self, f"last_{kind}", res.model)
         return res.model
 
-    def regression(self, X, y):
+    def regression(self, X, y, *, keep: bool = True):
         """g_R on this context's successes ``X`` (d, m), ``y`` (d,) and every other success."""
         p = self.prior
         ok = p.success & np.isfinite(p.returns)
         yj = np.concatenate([p.returns[ok], np.asarray(y, dtype=float)])
         if len(yj) == 0:
             return None
-        model = self._fit("regression", fit_regression, X=self._joint(X, p.theta[ok], p.context[ok]), y=yj)
+        model = self._fit("regression", fit_regression, keep, X=self._joint(X, p.theta[ok], p.context[ok]), y=yj)
         return ContextSlice(model, self.context, self.m, X, y)
 
-    def classifier(self, X, s):
+    def classifier(self, X, s, *, keep: bool = True):
         """g_S on this context's points ``X`` (d, m), outcomes ``s`` (d,), and every other trial."""
         p = self.prior
         sj = np.concatenate([p.success, np.asarray(s, dtype=bool)])
-        model = self._fit("classifier", fit_classifier, X=self._joint(X, p.theta, p.context), s=sj,
+        model = self._fit("classifier", fit_classifier, keep, X=self._joint(X, p.theta, p.context), s=sj,
                           prior_mean=self.prior_mean, previous=self.last_classifier)
         labels = np.where(np.asarray(s, dtype=bool), 1.0, -1.0)
         return ContextSlice(model, self.context, self.m, X, labels)

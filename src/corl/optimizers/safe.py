@@ -246,6 +246,8 @@ class SafeBOOptimizer(_BayesOpt):
         if np.sum(np.all(np.abs(Xs[s] - x) <= REPEAT * self.bounds.width, axis=1)) >= 2:
             return True  # a repeat succeeded too
         model = getattr(classifier, "_model", classifier)  # a _Reuse wraps the decision's fit
+        if not isinstance(model, GPClassifier):  # a slice of a joint model (corl.contexts): its own probability
+            return bool(classifier.predict_proba(x[None])[0] >= P_TRUSTED)
         same = np.flatnonzero(np.all(Xs == x, axis=1) & s)
         others = np.arange(len(Xs)) != (same[0] if same.size else -1)  # every trial but this one
         loo = GPClassifier(model.kernel_, model.prior_mean, warm_start=False)
@@ -437,10 +439,11 @@ class SafeBOOptimizer(_BayesOpt):
         """g_R's fitted noise std (model units), or 0 where it was not fitted from the data (fixed GPs, or too
         few successes: the prior's median is no measurement of the noise)."""
         regression = self._models[1] if self._models is not None else None
-        if regression is None or not self.models.regression_config.fit_hyperparameters \
+        config = getattr(self.models, "regression_config", None)  # corl.contexts' joint models: always fitted
+        if regression is None or (config is not None and not config.fit_hyperparameters) \
                 or self.models.fallback.get("regression", "none"):
             return 0.0
-        return float(regression.noise_std_)
+        return float(getattr(regression, "noise_std_", getattr(getattr(regression, "joint", None), "noise_std_", 0.0)))
 
     def _far_look_classifier(self):
         """g_S fitted with the length-scale prior median ``far_lengthscale`` (from scratch, once per ask)."""
