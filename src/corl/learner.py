@@ -443,6 +443,8 @@ class CORL:
         task, cfg = self.task, self.config
         rng = np.random.default_rng([self.seed, self.rounds])
         optimizer = self.optimizer_factory(task.theta_bounds, theta_star.copy(), rng)
+        if hasattr(optimizer, "recheck_failures"):  # a failed w is never run again here: no repeat to ask for
+            optimizer.recheck_failures = False
         self.optimizers.append(optimizer)
         for theta, outcome in data:  # Alg. 1: Initialize D
             optimizer.tell(theta, outcome)

@@ -175,6 +175,9 @@ class SafeBOOptimizer(_BayesOpt):
         self._checks: list[np.ndarray] = []  # points tried again after a surprising failure
         self._doubts: list[np.ndarray] = []  # successes in doubt tried again before a stop (their failures count)
         self._stopping: StopReason | None = None  # the stop a repeat of a success in doubt came before
+        # a failed point may be asked again (a surprise, label_noise); Algorithm 1 never runs a failed w again
+        # (CORL.failed_before: it would be told the old failure, not a new reading), so it turns this off
+        self.recheck_failures = True
         self._far_classifier = None  # (points, g_S refitted for the far look) with far_lengthscale
         self._scale = tuple(float(w) for w in bounds.width) if config.distance_scale is None else config.distance_scale
         self._maximizer = config.maximizer  # below BAND_SEEDS_FROM_DIM, without seeds whatever boundary_pairs says
@@ -260,7 +263,8 @@ class SafeBOOptimizer(_BayesOpt):
     def _observe(self, x: np.ndarray, outcome) -> None:
         """A failure where g_S was sure of success (p >= P_SURPRISE when proposed) is tried once more."""
         asked = self._asked_p
-        if asked is not None and not outcome.success and self._answers(x, asked[0]) and asked[1] >= P_SURPRISE \
+        if asked is not None and self.recheck_failures and not outcome.success and self._answers(x, asked[0]) \
+                and asked[1] >= P_SURPRISE \
                 and not any(self._answers(x, c) for c in self._checks):
             self._recheck = np.array(asked[0], dtype=float)
         self._asked_p = None
@@ -315,7 +319,8 @@ class SafeBOOptimizer(_BayesOpt):
         as a success; the first whose decision is a trial is tried again. At most ``label_noise`` times
         the budget (at least one) per run: a sensor that errs that often errs about that many times.
         """
-        if self.label_noise <= 0 or len(self._checks) >= max(1, int(np.ceil(self.label_noise * self.max_evals))):
+        if self.label_noise <= 0 or not self.recheck_failures \
+                or len(self._checks) >= max(1, int(np.ceil(self.label_noise * self.max_evals))):
             return None
         tried = self._checks + self._doubts + ([] if self.start is None else [self.start])
         failed = [i for i in np.flatnonzero(~self.success_) if not any(self._answers(self.X_[i], c) for c in tried)]
