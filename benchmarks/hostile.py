@@ -1,7 +1,7 @@
 """Every bad input of issue 13 against every ``corl`` subcommand, typed as a user would (subprocess).
 
 Each case runs in a fresh folder holding a store (``s.corl``: the synthetic task, trial 0 told,
-trial 1 pending), a store whose demonstration is pending (``demo.corl``), a finished run
+trial 1 pending), a store whose demonstration is pending after two failed readings (``demo.corl``), a finished run
 (``fin.corl``), a run of ``synthetic-context`` in context 0.5 (``ctx.corl``: trial 0 told, trial 1
 pending; the skill ``corl policy`` reads), a plain file (``afile.txt``) and a user task module (``usertask.py``, whose
 rollouts leave ``rollouts.txt``; some of its factories raise, exit or build tasks whose rollout
@@ -330,6 +330,9 @@ def prepare(folder: Path) -> None:
     with contextlib.closing(sqlite3.connect(folder / "fin.corl")) as db, db:
         db.execute("DELETE FROM trials WHERE trial_index = 1")  # nothing pending
         db.execute("UPDATE runs SET status = 'finished'")
+    for _ in range(2):  # demo.corl: the demonstration read twice as failed (start_retries) and asked a third time
+        corl("tell", "--store", "demo.corl", "--task", "synthetic", "--success", "no")
+        corl("ask", "--store", "demo.corl", "--task", "synthetic", "--out", "trials", "--raw")
     corl("ask", "--store", "ctx.corl", "--task", "synthetic-context", "--context", "0.5", "--out", "trials", "--raw")
     corl("tell", "--store", "ctx.corl", "--task", "synthetic-context", "--success", "yes", "--return", "0.9")
     corl("ask", "--store", "ctx.corl", "--task", "synthetic-context", "--out", "trials", "--raw")
