@@ -211,6 +211,12 @@ class SafeBOOptimizer(_BayesOpt):
         key = len(self.X_)
         if self._best_cache is not None and self._best_cache[0] == key:
             return self._best_cache[1]
+        self._best_cache = (key, *self._rank_successes(ok))
+        return self._best_cache[1]
+
+    def _rank_successes(self, ok: np.ndarray) -> tuple[LearnersBest, np.ndarray | None]:
+        """The learner's best among the successes ``ok`` (indices into ``X_``) and those successes ordered by
+        g_R's posterior mean, highest first (None without g_R), from the models of the decision."""
         regression, classifier = self._fitted_models()
         X = self.X_[ok]
         if regression is None:  # too few successes for g_R: the readings themselves
@@ -224,8 +230,7 @@ class SafeBOOptimizer(_BayesOpt):
         chosen = next((i for i in order if self._trusted(ok[i], classifier)), int(np.argmax(p)))
         best = LearnersBest(X[chosen].copy(), float(mean[chosen]), float(std[chosen]), float(p[chosen]),
                             int(ok[chosen]), float(self.returns_[ok[chosen]]))
-        self._best_cache = (key, best)
-        return best
+        return best, None if regression is None else ok[order]
 
     def _best_theta(self) -> np.ndarray:
         return self._learners_best().theta.copy()
@@ -342,15 +347,11 @@ class SafeBOOptimizer(_BayesOpt):
     def _doubted(self) -> np.ndarray | None:
         """A sampled success above the learner's best in posterior mean whose success is in doubt, not yet tried
         again; None when there is none."""
-        ok = np.flatnonzero(self.success_ & np.isfinite(self.returns_))
         best = self._learners_best()
-        if best is None:
+        ranked = None if best is None else self._best_cache[2]  # by posterior mean, from the same models
+        if ranked is None:
             return None
-        regression, classifier = self._fitted_models()
-        if regression is None:
-            return None
-        mean = regression.predict(self.X_[ok])[0] * model_scale(self.returns_[ok])
-        for i in ok[np.argsort(-mean, kind="stable")]:
+        for i in ranked:
             if i == best.index:
                 return None
             if not any(self._answers(self.X_[i], c) for c in self._doubts + self._checks):
