@@ -170,7 +170,10 @@ def _divergence_message(store: RunStore, run_id: int, i: int, problem: str) -> s
     """Where the resumed learner leaves the stored run, and what most likely made it."""
     run = store.run(run_id)
     message = f"cannot resume run {run_id}: the learner does not propose the stored trial {i}: {problem}. "
-    changed = version_differences(run.versions, {**library_versions(), **machine_info()})
+    here = {**library_versions(), **machine_info()}
+    # A machine whose BLAS kernel cannot be read (older numpy builds) still differs from a run that named one.
+    here.update({key: "unknown" for key in ("blas_kernel", "cpu") if key in run.versions and key not in here})
+    changed = version_differences(run.versions, here)
     if changed:
         message += ("Likely cause: this machine's software or processor differs from the run's ("
                     + ", ".join(changed) + "); resume with the run's versions (`corl report` lists them)")
