@@ -179,6 +179,8 @@ def bench_contexts(
     budget: int = typer.Option(40, help="trials per method and test context (each stops earlier when it converges)"),
     out: Path = typer.Option(Path("results/contexts"), help="output folder for contexts.json, the figure, train.corl"),
     jobs: int = typer.Option(2, help="parallel workers over the test contexts (-1: all cores)"),
+    truth: str = typer.Option("auto", help="each test scene's best return: auto (the task's best_return() when it "
+                              "has one, else grid:64), task, or grid:N (a sweep of N thetas from its demonstration)"),
     quiet: bool = QUIET, json_out: bool = JSON_OUT, log: bool = LOG,
 ) -> None:
     """One skill, many scenes: the skill learned on TRAIN contexts against learning each test context
@@ -186,12 +188,16 @@ def bench_contexts(
     import time
 
     from corl.errors import CorlError
-    from corl.experiments.contexts import bench_contexts as study, contexts_table, plot_contexts
+    from corl.experiments.contexts import bench_contexts as study, contexts_table, parse_truth, plot_contexts
 
     check_args(task=("TASK", task), seed=("--seed", seed), jobs=("--jobs", jobs), folder=("--out", out))
     for flag, value, low, high in (("--train", train, 1, 1000), ("--test", test, 1, 1000), ("--budget", budget, 1, 10000)):
         if not low <= value <= high:
             fail(f"{flag} must be an integer in [{low}, {high}], got {value}")
+    try:
+        parse_truth(truth)
+    except CorlError as exc:
+        fail(str(exc))
     NEW_PATHS.track(out)
     make_folder("--out", out)
     t0 = time.perf_counter()
@@ -200,6 +206,8 @@ def bench_contexts(
         tracker.add_stage("test", total=test)
 
         def tick(stage, done, total, row):
+            if "skipped" in row:
+                return tracker.update(stage, done=done, total=total, note=f"context {done} skipped: {row['skipped']}")
             if stage == "train":
                 note = f"context {done}: {row['trials']} trials, {row['failures']} failed, start {row['start']}"
                 return tracker.update("train", done=done, total=total, failures=row["failures"], note=note)
@@ -209,7 +217,7 @@ def bench_contexts(
 
         try:
             payload = study(task, train_count=train, test_count=test, seed=seed, out=out, budget=budget, jobs=jobs,
-                            progress=tick)
+                            progress=tick, truth=truth)
         except CorlError as exc:
             fail(str(exc))
     payload["wall_seconds"] = time.perf_counter() - t0

@@ -24,17 +24,17 @@ from __future__ import annotations
 
 import time
 from contextlib import nullcontext
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from corl.errors import InputError
+from corl.errors import DemonstrationFailedError, InputError
 
 __all__ = ["METHODS", "TARGET_FRACTION", "draw_contexts", "train", "evaluate_context", "summarise", "bench_contexts",
            "contexts_table", "plot_contexts"]
 
-METHODS = ("contextual", "scratch", "nearest")
+METHODS = ("contextual", "nearest+CORL", "scratch", "nearest")
 TARGET_FRACTION = 0.95  # a trial reaches the target at R >= R_best - (1 - TARGET_FRACTION) |R_best|
 GRID_POINTS = 64  # sweep points per test context (spread over theta's dimensions)
 
@@ -76,146 +76,236 @@ def _row(c, history, best, start: str, seconds: float) -> dict:
             "seconds": seconds}
 
 
+def _same(a, b) -> bool:
+    return a is not None and np.shape(a) == np.shape(b) and np.allclose(a, b, rtol=0.0, atol=1e-12)
+
+
 def train(spec: str, seed: int, contexts: np.ndarray, store: Path, progress=None) -> list[dict]:
     """Learn in each context in turn, every run in ``store``, each from the runs before it; one
-    summary per run. Resumable: the i-th run of the store is context i; a finished one is kept, an
-    unfinished one continued exactly (:meth:`StoredRun.open`), a missing one started."""
+    summary per run. Resumable: a context's run is found by its context; a finished one is kept, an
+    unfinished one continued exactly (:meth:`StoredRun.open`), a missing one started. A scene that
+    cannot be learned (its demonstration or its start fails, or the task raises there) is named in
+    its row (``skipped``) and the study goes on without it."""
+    from corl.errors import MissingExtraError
     from corl.session import StoredRun
-    from corl.store import RunStatus, RunStore
+    from corl.store import RunStatus, RunStore, StoreError
 
     task = _task(spec, seed)
+    foreign = [info for info in _stored_runs(store)
+               if not any(_same(info.config.get("context"), c) for c in contexts)]
+    if foreign:
+        raise InputError(f"run {foreign[0].id} of {store} was learned in context {foreign[0].config.get('context')}, "
+                         "not one of this study's: this store belongs to another study; choose another --out")
     rows = []
     for i, c in enumerate(contexts):
         t0 = time.perf_counter()
         existing = _stored_runs(store)
-        with RunStore(store, create=False, readonly=True) if existing else nullcontext() as ro:
-            if i < len(existing):
-                info = existing[i]
-                recorded = info.config.get("context")
-                if recorded is None or not np.allclose(recorded, c, rtol=0.0, atol=1e-12):
-                    raise InputError(f"run {info.id} of {store} was learned in context {recorded}, not {c.tolist()}: "
-                                     "this store belongs to another study; choose another --out")
-                run = StoredRun.open(ro, task, info.id)
-            else:
-                run = StoredRun.new(task, task_spec=spec, method="CORL", seed=seed, context=c, learned_from=ro)
-        if i >= len(existing) or existing[i].status is not RunStatus.FINISHED:
-            with RunStore(store) as db:
-                run.attach(db)
-                run.run(task.with_context(c))
-        rows.append(_row(c, run.history, run.best, getattr(run.learner, "start_kind", ""), time.perf_counter() - t0))
+        info = next((r for r in existing if _same(r.config.get("context"), c)), None)
+        try:
+            with RunStore(store, create=False, readonly=True) if existing else nullcontext() as ro:
+                if info is not None:
+                    run = StoredRun.open(ro, task, info.id)
+                else:
+                    run = StoredRun.new(task, task_spec=spec, method="CORL", seed=seed, context=c, learned_from=ro)
+            if info is None or info.status is not RunStatus.FINISHED:
+                with RunStore(store) as db:
+                    run.attach(db)
+                    run.run(task.with_context(c))
+        except (StoreError, MissingExtraError):
+            raise  # the study's own files or installation, not the scene
+        except Exception as exc:  # a user's family: one scene that cannot be learned is skipped (named)
+            reason = f"{type(exc).__name__}: {exc}".splitlines()[0]
+            rows.append({"context": [float(v) for v in c], "skipped": reason, "seconds": time.perf_counter() - t0})
+        else:
+            rows.append(_row(c, run.history, run.best, getattr(run.learner, "start_kind", ""),
+                             time.perf_counter() - t0))
         if progress is not None:
             progress("train", i + 1, len(contexts), rows[-1])
+    if all("skipped" in r for r in rows):
+        raise InputError(f"no training scene could be learned; the first: context {rows[0]['context']}: "
+                         f"{rows[0]['skipped']}")
     return rows
 
 
-def _grid(dim: int) -> tuple[int, ...]:
-    side = max(3, int(round(GRID_POINTS ** (1.0 / dim))))
+def parse_truth(text: str) -> tuple[str, int]:
+    """``--truth``: ``auto`` (the task's ``best_return()`` when it has one, else ``grid:64``),
+    ``task`` (its ``best_return()``, required) or ``grid:N`` (a sweep of N points); ``(kind, N)``."""
+    text = str(text).strip()
+    if text in ("auto", "task"):
+        return text, GRID_POINTS
+    kind, _, count = text.partition(":")
+    if kind == "grid" and count.isdigit() and 2 <= int(count) <= 1_000_000:
+        return "grid", int(count)
+    raise InputError(f"--truth {text!r}: give auto, task or grid:N with N an integer in [2, 1000000]")
+
+
+def _grid(dim: int, points: int = GRID_POINTS) -> tuple[int, ...]:
+    side = max(3, int(round(points ** (1.0 / dim))))
     return (side,) * dim
 
 
-def _scores(outcomes, target: float, budget: int, best_swept: float) -> dict:
-    """What one method did in one context, from its trials' outcomes (in order)."""
-    reach = next((i + 1 for i, o in enumerate(outcomes) if o.success and o.return_ >= target), budget)
-    before = outcomes[:reach]  # the trials until the target (all of them when it was never reached)
-    returns = [o.return_ for o in outcomes if o.success]
-    final = max(returns) if returns else None
-    ratio = 0.0 if final is None else float(final / best_swept) if best_swept != 0 else float("nan")
-    return {"trials": len(outcomes), "first_trial_success": bool(outcomes and outcomes[0].success),
-            "trials_to_95": int(reach), "failures": sum(not o.success for o in outcomes),
-            "failures_to_95": sum(not o.success for o in before),
-            "final_return": final, "final_return_ratio": ratio}
-
-
-def evaluate_context(spec: str, seed: int, store: str, context, budget: int, grid=None) -> dict:
-    """The three methods and the sweep in one test context (runs in a worker)."""
-    from corl.contexts import ContextualCORL, Skill
+def _truth(scene, truth: tuple[str, int], grid=None) -> dict:
+    """The best return reachable in ``scene``: its own ``best_return()`` (a closed form or a dense
+    search the task's author wrote), or a sweep of theta's box realised from the scene's
+    demonstration after step 1 to convergence (the motion every learner starts to optimise)."""
     from corl.experiments.sweep import _solver, evaluate_points
-    from corl.loop import drive
-    from corl.methods import make_method
-    from corl.realise import feasible, motion_problem, realise
+    from corl.realise import feasible, motion_problem
     from corl.trajectory.solver import solve
 
-    task = _task(spec, seed)
-    c = np.asarray(context, dtype=float)
-    scene = task.with_context(c)
-    t0 = time.perf_counter()
-    # ground truth: the sweep of this scene from its own demonstration's motion at its best (Eq. 8 at
-    # theta0 to convergence, no trial: R depends on the motion, and every learner optimises it)
+    kind, count = truth
+    own = getattr(scene, "best_return", None)
+    if kind in ("auto", "task") and callable(own):
+        value = float(own())
+        if not np.isfinite(value):
+            raise InputError(f"the task's best_return() gave {value}; it must return a finite number")
+        return {"best_truth": value, "truth": "task's best_return()", "theta_truth": None, "truth_points": 0}
+    if kind == "task":
+        raise InputError("--truth task: the task has no best_return() member; use --truth grid:N")
     demo = scene.demonstration()
     solver = _solver(scene)
     best_motion = solve(motion_problem(scene, demo.theta), demo.w, config=solver)
     if feasible(best_motion, solver):
         demo = type(demo)(best_motion.w, demo.theta)
     bounds = scene.theta_bounds
-    sizes = tuple(grid) if grid is not None else _grid(bounds.dim)
+    sizes = tuple(grid) if grid is not None else _grid(bounds.dim, count)
     axes = [np.linspace(lo, hi, g) for lo, hi, g in zip(bounds.lower, bounds.upper, sizes)]
     points = np.column_stack([g.ravel() for g in np.meshgrid(*axes, indexing="ij")])
     success, _, returns = evaluate_points(scene, demo.w, demo.theta, points)
     if not np.any(success):
-        raise InputError(f"no theta of the sweep succeeds in context {c.tolist()}; the ground truth is missing")
-    best_swept = float(np.nanmax(returns))
-    theta_swept = points[int(np.nanargmax(returns))]
-    target = best_swept - (1.0 - TARGET_FRACTION) * abs(best_swept)
-    t_sweep = time.perf_counter() - t0
-    out = {"context": c.tolist(), "best_swept": best_swept, "theta_swept": theta_swept.tolist(),
-           "target": target, "sweep_points": int(len(points)), "seconds": {"sweep": t_sweep}}
+        return {"best_truth": None, "truth": f"grid:{len(points)} (no theta succeeded)", "theta_truth": None,
+                "truth_points": int(len(points))}
+    return {"best_truth": float(np.nanmax(returns)), "truth": f"grid:{len(points)}",
+            "theta_truth": points[int(np.nanargmax(returns))].tolist(), "truth_points": int(len(points))}
 
+
+def _reached(outcomes, fraction: float, best: float, budget: int) -> int:
+    """The trial (1-based) whose success first reaches ``fraction`` of ``best``; the budget when none did."""
+    target = best - (1.0 - fraction) * abs(best)
+    return next((i + 1 for i, o in enumerate(outcomes) if o.success and o.return_ >= target), budget)
+
+
+def _scores(outcomes, best: float, budget: int) -> dict:
+    """What one method did in one context, from its trials' outcomes (in order), against ``best``."""
+    reach = _reached(outcomes, TARGET_FRACTION, best, budget)
+    returns = [o.return_ for o in outcomes if o.success]
+    final = max(returns) if returns else None
+    ratio = 0.0 if final is None else float(final / best) if best != 0 else float("nan")
+    return {"trials": len(outcomes), "first_trial_success": bool(outcomes and outcomes[0].success),
+            "trials_to_95": int(reach), "trials_to_99": _reached(outcomes, 0.99, best, budget),
+            "reached_95": bool(any(o.success and o.return_ >= best - 0.05 * abs(best) for o in outcomes)),
+            "failures": sum(not o.success for o in outcomes),
+            "failures_to_95": sum(not o.success for o in outcomes[:reach]),
+            "final_return": final, "final_return_ratio": ratio}
+
+
+def _log(history) -> dict:
+    """Every trial of a method: success, return (None on a failure) and theta, in order."""
+    return {"success": [bool(o.success) for _, o in history],
+            "return": [None if not o.success or o.return_ is None else float(o.return_) for _, o in history],
+            "theta": [None if p is None else np.asarray(p.theta, dtype=float).tolist() for p, _ in history]}
+
+
+def _nearest_corl(scene, skill, c, seed: int, budget: int):
+    """CORL in the scene started from the nearest training scene's ``w*`` realised there at its
+    ``theta*`` (no data from any other scene): ``(history, first)``, ``first`` the realised start."""
+    from corl.contexts.learn import StartedTask
+    from corl.experiments.sweep import _solver
+    from corl.loop import drive
+    from corl.methods import make_method
+    from corl.problem import Demonstration, Outcome
+    from corl.realise import realise
+
+    anchor = skill.nearest(c)
+    done = realise(scene, anchor.w, anchor.theta, anchor.theta, _solver(scene))
+    if not done.feasible:  # not realisable here: it cannot be run, a failure without a rollout
+        return [(None, Outcome(False, None, {"unrealisable": True}))], None
+    learner = make_method("CORL", StartedTask(scene, Demonstration(done.w, anchor.theta)), seed=seed)
+    learner.config = replace(learner.config, start_retries=0)  # a start that fails is no demonstration to retry
+    try:
+        drive(learner, scene, max_trials=budget)
+    except DemonstrationFailedError:
+        pass  # its start failed: CORL cannot go on from it (the one failed trial is its whole run)
+    return list(learner.history), done.w
+
+
+def evaluate_context(spec: str, seed: int, store: str, context, budget: int, grid=None,
+                     truth: tuple[str, int] = ("auto", GRID_POINTS)) -> dict:
+    """The four methods and the ground truth in one test context (runs in a worker)."""
+    from corl.contexts import ContextualCORL, Skill
+    from corl.loop import drive
+    from corl.methods import make_method
+    from corl.problem import Outcome
+
+    task = _task(spec, seed)
+    c = np.asarray(context, dtype=float)
+    out = {"context": c.tolist(), "seconds": {}}
+    try:
+        scene = task.with_context(c)
+        scene.demonstration()
+    except Exception as exc:  # a user's family: one scene without a demonstration is skipped, not the study
+        return {**out, "skipped": f"with_context(c).demonstration() raised {type(exc).__name__}: {exc}"}
+    t0 = time.perf_counter()
+    out.update(_truth(scene, truth, grid))
+    out["seconds"]["truth"] = time.perf_counter() - t0
     skill = Skill.load(store, task)
     policy = skill.policy(c)
     out["policy"] = {"theta": policy.theta.tolist(), "p_success": policy.p_success, "R_mean": policy.R_mean,
                      "R_std": policy.R_std, "nearest": policy.nearest.tolist()}
-    seen = {}
+    histories = {}
     learners = {"contextual": lambda: ContextualCORL(task, c, skill, seed=seed),
                 "scratch": lambda: make_method("CORL", scene, seed=seed)}
     for name, build in learners.items():
         t0 = time.perf_counter()
         learner = build()
-        drive(learner, scene, max_trials=budget)
-        outcomes = [o for _, o in learner.history]
-        out[name] = _scores(outcomes, target, budget, best_swept)
-        seen[name] = outcomes
-        best = learner.best
-        out[name]["theta"] = None if best is None else np.asarray(best.theta).tolist()
+        try:
+            drive(learner, scene, max_trials=budget)
+        except DemonstrationFailedError:  # scratch: the scene's demonstration failed there
+            if name != "scratch" or len(learner.history) == 0:
+                raise
+        histories[name] = list(learner.history)
         out["seconds"][name] = time.perf_counter() - t0
-    # nearest: the nearest training context's w* realised here at its theta*, used as is
-    t0 = time.perf_counter()
+        best = learner.best
+        out[name] = {"theta": None if best is None else np.asarray(best.theta).tolist()}
+    t0 = time.perf_counter()  # nearest: the nearest training context's w* realised here at its theta*, as is
+    histories["nearest+CORL"], _ = _nearest_corl(scene, skill, c, seed, budget)
+    out["seconds"]["nearest+CORL"] = time.perf_counter() - t0
+    first = histories["nearest+CORL"][:1]
+    histories["nearest"] = first if first else [(None, Outcome(False, None, {"unrealisable": True}))]
     anchor = skill.nearest(c)
-    done = realise(scene, anchor.w, anchor.theta, anchor.theta, solver)
-    if done.feasible:
-        outcomes = [scene.rollout(done.w)]
-    else:  # not realisable here: it cannot be run, a failure without a rollout
-        from corl.problem import Outcome
-
-        outcomes = [Outcome(False, None, {"unrealisable": True})]
-    out["nearest"] = _scores(outcomes, target, budget, best_swept)
-    seen["nearest"] = outcomes
-    out["nearest"]["theta"] = anchor.theta.tolist()
-    out["seconds"]["nearest"] = time.perf_counter() - t0
-    # the best return known here: the sweep's or any method's; 95 % of it is the stricter target
-    known = max([best_swept] + [o.return_ for rows in seen.values() for o in rows if o.success])
-    out["best_known"] = known
-    strict = known - (1.0 - TARGET_FRACTION) * abs(known)
-    for name, rows in seen.items():
-        out[name]["trials_to_95_known"] = next(
-            (i + 1 for i, o in enumerate(rows) if o.success and o.return_ >= strict), budget)
-        final = out[name]["final_return"]
-        out[name]["final_return_known"] = 0.0 if final is None else float(final / known) if known else float("nan")
+    out["nearest"] = {"theta": anchor.theta.tolist()}
+    finals = {name: rows for name, rows in histories.items()}
+    seen = [o.return_ for rows in finals.values() for _, o in rows if o.success]
+    truth_value = out["best_truth"]
+    if truth_value is None and not seen:
+        return {**out, "skipped": "no method and no point of the ground truth succeeded in this scene"}
+    # the best return known here: the ground truth's, never below the best any method saw
+    best = max([v for v in [truth_value] if v is not None] + seen)
+    out["best"] = best
+    found = [(o.return_, p.theta) for rows in finals.values() for p, o in rows if o.success and p is not None]
+    top = max(found, key=lambda f: f[0]) if found else None
+    by_truth = out["theta_truth"] is not None and (top is None or truth_value >= top[0])
+    out["theta_best"] = (out["theta_truth"] if by_truth or top is None
+                         else np.asarray(top[1], dtype=float).tolist())
+    out["truth_below_seen"] = bool(truth_value is not None and seen and max(seen) > truth_value)
+    for name, rows in finals.items():
+        entry = out.setdefault(name, {})
+        entry.update(_scores([o for _, o in rows], best, budget))
+        entry["log"] = _log(rows)
     return out
 
 
 def summarise(per_context: list[dict]) -> dict:
-    """Means over the test contexts, per method (the ``methods`` table of contexts.json)."""
+    """Means over the test contexts that were not skipped, per method (the ``methods`` table)."""
+    rows_all = [r for r in per_context if "skipped" not in r]
     table = {}
     for name in METHODS:
-        rows = [r[name] for r in per_context]
-        table[name] = {"first_trial_success": float(np.mean([r["first_trial_success"] for r in rows])),
-                       "trials_to_95": float(np.mean([r["trials_to_95"] for r in rows])),
-                       "failures": float(np.mean([r["failures"] for r in rows])),
-                       "failures_to_95": float(np.mean([r["failures_to_95"] for r in rows])),
-                       "final_return_ratio": float(np.mean([r["final_return_ratio"] for r in rows])),
-                       "trials_to_95_known": float(np.mean([r["trials_to_95_known"] for r in rows])),
-                       "final_return_known": float(np.mean([r["final_return_known"] for r in rows])),
-                       "trials": float(np.mean([r["trials"] for r in rows]))}
+        rows = [r[name] for r in rows_all]
+        if not rows:
+            continue
+        mean = {key: float(np.mean([r[key] for r in rows]))
+                for key in ("first_trial_success", "trials_to_95", "trials_to_99", "failures", "failures_to_95",
+                            "final_return_ratio", "trials")}
+        table[name] = {**mean, "reached_95": int(sum(r["reached_95"] for r in rows)), "contexts": len(rows)}
     return table
 
 
@@ -225,23 +315,28 @@ class _Job:
     seed: int
     store: str
     budget: int
+    truth: tuple[str, int]
 
     def __call__(self, context):
-        return evaluate_context(self.spec, self.seed, self.store, context, self.budget)
+        return evaluate_context(self.spec, self.seed, self.store, context, self.budget, truth=self.truth)
 
 
 def bench_contexts(spec: str, *, train_count: int, test_count: int, seed: int, out: Path, budget: int = 40,
-                   jobs: int = 1, progress=None) -> dict:
+                   jobs: int = 1, progress=None, truth: str = "auto") -> dict:
     """The whole study; writes ``out/train.corl`` (the skill) and returns the contexts.json payload.
 
     A ``train.corl`` already in ``out`` from the same study (task, seed, training contexts) is
-    reused: its finished runs are kept and an unfinished one is resumed (:func:`train`)."""
+    reused: its finished runs are kept and an unfinished one is resumed (:func:`train`).
+    ``truth``: how each test scene's best return is found (:func:`parse_truth`)."""
     from joblib import Parallel, delayed
 
     from corl.contexts import context_task
     from corl.versions import library_versions
 
+    how = parse_truth(truth)
     task = context_task(_task(spec, seed))
+    if how[0] == "task" and not callable(getattr(task, "best_return", None)):
+        raise InputError(f"--truth task: task {spec} has no best_return() member; use --truth grid:N")
     box = task.context_bounds
     rng = np.random.default_rng([seed, 22])
     spread = draw_contexts(box, train_count - 1, rng, spread=True)
@@ -251,7 +346,7 @@ def bench_contexts(spec: str, *, train_count: int, test_count: int, seed: int, o
     t0 = time.perf_counter()
     trained = train(spec, seed, contexts, store, progress)
     t_train = time.perf_counter() - t0
-    job = _Job(spec, seed, str(store), budget)
+    job = _Job(spec, seed, str(store), budget, how)
     per_context = []
     with Parallel(n_jobs=jobs, return_as="generator") as parallel:
         for i, row in enumerate(parallel(delayed(job)(c) for c in tests)):
@@ -260,7 +355,8 @@ def bench_contexts(spec: str, *, train_count: int, test_count: int, seed: int, o
                 progress("test", i + 1, len(tests), row)
     return {"task": spec, "seed": seed, "theta_labels": list(getattr(task, "theta_labels", None) or []) or None,
             "context_labels": list(getattr(task, "context_labels", None) or []) or None, "train": trained,
-            "test": per_context, "methods": summarise(per_context),
+            "test": per_context, "methods": summarise(per_context), "truth": truth,
+            "skipped": {"train": sum("skipped" in r for r in trained), "test": sum("skipped" in r for r in per_context)},
             "budget": budget, "target_fraction": TARGET_FRACTION, "train_seconds": t_train,
             "wall_seconds": time.perf_counter() - t0, "versions": library_versions()}
 
@@ -268,42 +364,53 @@ def bench_contexts(spec: str, *, train_count: int, test_count: int, seed: int, o
 def contexts_table(payload: dict) -> str:
     """The methods side by side, means over the test contexts (what ``corl bench contexts`` prints)."""
     m = payload["methods"]
-    lines = [f"{'method':12s} {'first trial ok':>15s} {'trials to 95%':>14s} {'failures':>9s} {'until 95%':>10s} "
-             f"{'final R / best':>15s} {'trials':>7s} {'to 95% known':>13s} {'R / known':>10s}"]
+    lines = [f"{'method':13s} {'first trial ok':>15s} {'to 95%':>7s} {'to 99%':>7s} {'95% reached':>12s} "
+             f"{'failures':>9s} {'until 95%':>10s} {'final R / best':>15s} {'trials':>7s}"]
     for name in METHODS:
+        if name not in m:
+            continue
         r = m[name]
-        lines.append(f"{name:12s} {100 * r['first_trial_success']:14.0f}% {r['trials_to_95']:14.2f} "
-                     f"{r['failures']:9.2f} {r['failures_to_95']:10.2f} {r['final_return_ratio']:15.3f} "
-                     f"{r['trials']:7.1f} {r['trials_to_95_known']:13.2f} {r['final_return_known']:10.3f}")
-    n, k = len(payload["train"]), len(payload["test"])
-    lines.append(f"(means over {k} test contexts; skill trained on {n} contexts; budget {payload['budget']} trials; "
-                 f"target R >= R_best - {1 - payload['target_fraction']:.2f} |R_best| of a "
-                 f"{payload['test'][0]['sweep_points']}-point sweep per context; 'known': the best return "
-                 "the sweep or any method saw there)")
+        lines.append(f"{name:13s} {100 * r['first_trial_success']:14.0f}% {r['trials_to_95']:7.2f} "
+                     f"{r['trials_to_99']:7.2f} {r['reached_95']:>6d} of {r['contexts']:<2d} {r['failures']:9.2f} "
+                     f"{r['failures_to_95']:10.2f} {r['final_return_ratio']:15.3f} {r['trials']:7.1f}")
+    tests = [t for t in payload["test"] if "skipped" not in t]
+    n = sum("skipped" not in r for r in payload["train"])
+    truth = sorted({t["truth"].split(" ")[0] for t in tests})
+    lines.append(f"(means over {len(tests)} test contexts; skill trained on {n} contexts; budget {payload['budget']} "
+                 f"trials; best = the ground truth ({', '.join(truth)}) or the best return any method saw there, "
+                 f"whichever is higher: it was higher in {sum(t['truth_below_seen'] for t in tests)} of {len(tests)}; "
+                 "a trial counts from its start, a method's trials to a target are its budget when never reached)")
+    for kind in ("train", "test"):
+        for r in payload[kind]:
+            if "skipped" in r:
+                lines.append(f"skipped {kind} context {r['context']}: {r['skipped']}")
     return "\n".join(lines)
 
 
 def plot_contexts(payload: dict, path, *, labels=None) -> Path:
-    """theta*(c) learned against the sweep's: per theta coordinate, the skill's first theta and the
-    contextual run's final theta* against the sweep's best theta, one point per test context."""
+    """theta*(c) learned against the best known: per theta coordinate, the skill's first theta and
+    the contextual run's final theta* against the best theta (the truth's or any method's), one point
+    per test context."""
     from corl.experiments.figures import _pyplot, _save
 
     plt = _pyplot()
-    tests = payload["test"]
-    m = len(tests[0]["theta_swept"])
+    tests = [t for t in payload["test"] if "skipped" not in t and t.get("theta_best") is not None]
+    if not tests:
+        raise InputError("no test context has a best theta to plot")
+    m = len(tests[0]["theta_best"])
     labels = list(labels) if labels is not None else [f"theta {j + 1}" for j in range(m)]
     fig, axes = plt.subplots(1, m, figsize=(4.2 * m, 4.0), squeeze=False)
     for j, ax in enumerate(axes[0]):
-        swept = np.array([t["theta_swept"][j] for t in tests])
+        swept = np.array([t["theta_best"][j] for t in tests])
         skill = np.array([t["policy"]["theta"][j] for t in tests])
         final = np.array([np.nan if t["contextual"]["theta"] is None else t["contextual"]["theta"][j] for t in tests])
         lo, hi = float(np.nanmin([swept.min(), skill.min(), np.nanmin(final)])), float(np.nanmax(
             [swept.max(), skill.max(), np.nanmax(final)]))
         pad = 0.05 * (hi - lo or 1.0)
-        ax.plot([lo - pad, hi + pad], [lo - pad, hi + pad], color="0.6", lw=1, label="learned = swept")
+        ax.plot([lo - pad, hi + pad], [lo - pad, hi + pad], color="0.6", lw=1, label="learned = best")
         ax.scatter(swept, skill, marker="o", label="skill.policy(c), no trial")
         ax.scatter(swept, final, marker="x", label="contextual run's theta*")
-        ax.set_xlabel(f"sweep's best {labels[j]}")
+        ax.set_xlabel(f"best {labels[j]} known")
         ax.set_ylabel(f"learned {labels[j]}")
         ax.set_title(f"theta*(c), {len(tests)} test contexts")
         ax.legend(fontsize=7)

@@ -132,6 +132,10 @@ class ContextualSyntheticTask(SyntheticTask):
     def with_context(self, c) -> "ContextualSyntheticTask":
         return ContextualSyntheticTask(self.w0, critical_distance=self.critical_distance, context=c)
 
+    def best_return(self) -> float:
+        """The best return in this scene, in closed form: R = 1 at theta*(c) = 0.5 c (:func:`optimum_of`)."""
+        return 1.0
+
     @property
     def _shift(self) -> float:
         return SHIFT * float(self.context[0])
