@@ -1,31 +1,48 @@
 # The two commands the README opens with: `make demo` and `make test`.
-# Each creates .venv from scratch when missing and installs what it needs, at the exact versions
-# of constraints.txt (the published numbers). pyproject.toml declares ranges; `make test-lowest` and
-# `make test-latest` run the whole suite at the lowest and at the newest versions they allow.
+# Both create .venv when missing and install into it at the exact versions of constraints.txt (the
+# published numbers): `make demo` corl's core alone (what the door needs; no extras), `make test`
+# every extra the suite tests. pyproject.toml declares ranges; `make test-lowest` and `make
+# test-latest` run the whole suite at the lowest and at the newest versions they allow, and `make
+# test-wheel` runs the built wheel as a user installs it.
 PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
+CORE_STAMP := $(VENV)/.core-installed
 STAMP := $(VENV)/.installed
+EXTRAS := test,ray,dask,docs,serve
 # One BLAS thread: small banded and dense factorizations are far slower with two.
 export OPENBLAS_NUM_THREADS ?= 1
 export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
-.PHONY: demo test test-fast test-lowest test-latest constraints bench synthetic docs clean
+.PHONY: demo test test-fast test-lowest test-latest test-wheel dist constraints bench synthetic docs clean
 
-$(STAMP): pyproject.toml constraints.txt
+$(PY):
+	@echo "==> creating $(VENV) ($(PYTHON) -m venv) and upgrading its pip"
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -c constraints.txt -e ".[test,ray,dask,docs,serve]"
-	touch $(STAMP)
 
-demo: $(STAMP)
-	MUJOCO_GL=egl $(VENV)/bin/corl run door --seed 0 --out results/door --video
+# The core: numpy, scipy, cma, joblib, typer, rich, matplotlib, mujoco, example-robot-data, imageio.
+$(CORE_STAMP): pyproject.toml constraints.txt | $(PY)
+	@echo "==> installing corl's core into $(VENV) at the versions of constraints.txt (no extras: no ray, dask, torch, docs)"
+	$(PY) -m pip install --progress-bar on -c constraints.txt -e .
+	touch $(CORE_STAMP)
 
-# `make test` installs headless Chromium for the browser test of `corl report` (when root with apt-get).
+$(STAMP): pyproject.toml constraints.txt | $(PY)
+	@echo "==> installing corl with the extras the suite tests ($(EXTRAS)) into $(VENV) at the versions of constraints.txt"
+	$(PY) -m pip install --quiet -c constraints.txt -e ".[$(EXTRAS)]"
+	touch $(STAMP) $(CORE_STAMP)
+
+demo: $(CORE_STAMP)
+	@echo "==> learning to open the door: corl run door --seed 0 --video (a few minutes; results/door/)"
+	$(VENV)/bin/corl run door --seed 0 --out results/door --video
+
+# The browser test of `corl report`'s page needs a headless Chromium: installed system-wide with apt-get
+# when missing and when run as root (CI), said before it is done.
 test: $(STAMP)
-	@command -v chromium >/dev/null || [ "$$(id -u)" != 0 ] || ! command -v apt-get >/dev/null || \
-		(apt-get update -qq && apt-get install -y -qq chromium >/dev/null) || echo "could not install chromium"
+	@if ! command -v chromium >/dev/null && [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+		echo "==> installing Chromium system-wide (apt-get install chromium, as root): the browser test of corl report's page needs it"; \
+		(apt-get update -qq && apt-get install -y -qq chromium >/dev/null) || echo "could not install chromium"; fi
 	$(PY) -m pytest -q
 
 test-fast: $(STAMP)
@@ -59,6 +76,19 @@ test-latest:
 	@echo "newest versions:"; $(LATEST)/bin/python -c "$(VERSIONS)"
 	$(LATEST)/bin/python -m pytest -q -p no:cacheprovider
 
+# The release as a user gets it (CI runs it after `make test`): tools/test_wheel.py builds the sdist
+# and the wheel, checks their files, installs the wheel at the locked versions into a fresh venv
+# outside the checkout and runs `corl --help`, the door with its video (no MUJOCO_GL, no display),
+# `corl status` against summary.json and a test of the MuJoCo kit from it.
+test-wheel: $(STAMP)
+	$(PY) tools/test_wheel.py
+
+# The sdist and the wheel in dist/, their files checked (tools/check_dist.py).
+dist: $(STAMP)
+	rm -rf dist
+	$(PY) -m build --outdir dist .
+	$(PY) tools/check_dist.py dist
+
 # Regenerate constraints.txt from .venv (after upgrading on purpose; the published numbers move with it).
 constraints: $(STAMP)
 	$(PY) .ci/freeze_constraints.py > constraints.txt
@@ -80,4 +110,4 @@ docs: $(DOCS_STAMP)
 	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build --strict --site-dir site
 
 clean:
-	rm -rf $(VENV) $(LOWEST) $(LATEST) results build site *.egg-info src/*.egg-info
+	rm -rf $(VENV) $(LOWEST) $(LATEST) results build dist site *.egg-info src/*.egg-info

@@ -367,7 +367,7 @@ def main() -> None:
         print(f"  {rec.iteration:3d} {rec.outer:2d}  J = {rec.cost:14.6f}  max|h| = {rec.constraint_error:.2e}  step = {rec.step_norm:.2e}")
     for c in cases:
         if c["casadi"] is None:
-            print("casadi not installed (pip install 'corl[bench]'); CasADi + Ipopt columns skipped")
+            print("casadi not installed (pip install 'corl-skills[bench]'); CasADi + Ipopt columns skipped")
             break
         print(f"casadi+ipopt at P = {c['P']}: {c['casadi']['status']}, graph + nlpsol build {c['casadi_build_s'] * 1e3:.0f} ms (excluded)")
     print()

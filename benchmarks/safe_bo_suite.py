@@ -33,7 +33,7 @@ With noise or flips, ``found`` asks whether a truly safe trial's TRUE return cam
 design it; ``seen`` ones were held out for one change, run once after it, and looked at while
 designing a later one (the look beyond the band, the look far); ``held-out`` ones were written
 before a change, run once after it, and no change was kept because of them (docs/safe_bo_suite.md).
-Peers are optional (``pip install corl[bench]``): BoTorch's constrained LogEI with the success
+Peers are optional (``pip install 'corl-skills[bench]'``): BoTorch's constrained LogEI with the success
 labels as a GP constraint (both GPs' hyperparameters fitted), and SafeOpt, which needs GPy and so
 numpy < 2: it runs in its own interpreter, ``--safeopt-python`` (a venv with safeopt), and is
 skipped when there is none. ``--speed`` times one iteration at 100 points in 2-D for CORL and
@@ -1099,7 +1099,7 @@ def print_speed(rows, versions: str) -> None:
     skipped = {r["BoTorch_skip"] for r in rows if r["BoTorch_skip"]}
     if skipped:
         print(f"BoTorch skipped: torch/botorch cannot be imported here ({'; '.join(sorted(skipped))}); "
-              "pip install 'corl[bench]'")
+              "pip install 'corl-skills[bench]'")
     print(f"versions: {versions}")
 
 
@@ -1195,7 +1195,7 @@ def main(argv=None) -> None:
         if importlib.util.find_spec("botorch") is not None:  # not imported here: --jobs forks this process
             available.add("BoTorch")
         else:
-            print("BoTorch: not installed (pip install 'corl[bench]'), skipped")
+            print("BoTorch: not installed (pip install 'corl-skills[bench]'), skipped")
     if "SafeOpt" in wanted:
         if args.safeopt_python and Path(args.safeopt_python).exists():
             available.add("SafeOpt")

@@ -38,8 +38,19 @@ class Rendering(SyntheticTask):
         return str(write_side_by_side(path, frames, frames + 255, fps=5))
 
 
+class Broken(Rendering):
+    """A task whose renderer fails once the run is over (as a GPU driver might)."""
+
+    def render_comparison(self, w_demo, w_learned, path):
+        raise RuntimeError("the OpenGL context was lost")
+
+
 def make_task():
     return Rendering()
+
+
+def make_broken():
+    return Broken()
 '''
 
 
@@ -74,3 +85,13 @@ def test_video_once_after_the_store_is_closed(module, tmp_path):
     assert video.is_file() and video.stat().st_size > 0
     on_disk = json.loads((tmp_path / "b" / "summary.json").read_text())
     assert on_disk["files"]["video"] == summary["files"]["video"]
+
+
+def test_a_video_asked_for_and_not_made_is_no_success(module, tmp_path):
+    res = CliRunner().invoke(app, ["run", f"{module}:make_broken", "--out", str(tmp_path / "c"), "--method", "CMA",
+                                   "--quiet", "--video"])
+    assert res.exit_code == 2, res.output  # never exit 0 without the video asked for
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1 and "the OpenGL context was lost" in lines[0] and "corl report" in lines[0]
+    summary = json.loads((tmp_path / "c" / "summary.json").read_text())  # the run's results are kept
+    assert "the OpenGL context was lost" in summary["files"]["video_skipped"] and summary["trials"] > 1

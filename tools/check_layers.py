@@ -33,7 +33,8 @@ MAX_LINES = 500
 # Lowest first. A layer names module prefixes: "corl.trajectory" holds corl.trajectory and every
 # module below it. Derived from the code: each layer imports only the ones before it.
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
-    ("base", ("corl.errors", "corl.versions", "corl.checks")),  # exceptions, versions, setting checks: nothing of corl above
+    ("base", ("corl.errors", "corl._version", "corl.versions", "corl.checks", "corl.offscreen")),  # exceptions, versions,
+    # setting checks, the offscreen backend chosen before MuJoCo is imported: nothing of corl above
     ("numerics", ("corl.numerics",)),  # jitter ladder, variance floors, log-space CDFs
     ("problem", ("corl.problem",)),  # Eq. 2-5: Task, Bounds, Proposal, Outcome, Demonstration
     ("client", ("corl.client",)),  # a client of `corl serve`: stdlib HTTP, ask/tell like a learner

@@ -34,11 +34,20 @@ that ``import corl`` stays light::
     opt = corl.make_optimizer("PIBU", (lower, upper), start, budget=40)   # ask / tell / done / stop_reason
 
 ``docs/index.md`` in the repository says how to build this reference (``make docs``).
+
+On a machine without a display, importing corl sets ``MUJOCO_GL`` to an offscreen backend that
+loads (EGL, else OSMesa) unless it is set already, before anything imports MuJoCo
+(:mod:`corl.offscreen`): videos render on servers and clusters as on a desktop.
 """
 
 from __future__ import annotations
 
 import importlib
+
+from corl import offscreen as _offscreen
+from corl._version import __version__  # the release (the distribution is corl-skills on PyPI)
+
+_offscreen.choose()
 
 _LAZY = {  # public name -> module that defines it
     "optimize": "corl.loop",

@@ -32,7 +32,7 @@ class StateError(CorlError, RuntimeError):
 
 
 class MissingExtraError(CorlError, ImportError):
-    """An optional package corl needs for this feature is not installed (``pip install 'corl[extra]'``)."""
+    """An optional package corl needs for this feature is not installed (``pip install 'corl-skills[extra]'``)."""
 
 
 class TaskError(CorlError):

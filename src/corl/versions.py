@@ -14,11 +14,13 @@ import platform
 from importlib import metadata
 from typing import Mapping
 
+from corl._version import __version__  # the distribution is corl-skills: PyPI's "corl" is another project
+
 __all__ = ["library_versions", "version_differences"]
 
 # Packages whose version is always recorded ("not installed" when missing), then optional ones
 # recorded only when installed.
-_REQUIRED = ("corl", "numpy", "scipy", "cma", "joblib")
+_REQUIRED = ("numpy", "scipy", "cma", "joblib")
 _OPTIONAL = ("mujoco",)
 NOT_INSTALLED = "not installed"
 
@@ -50,7 +52,7 @@ def library_versions() -> dict[str, str]:
     ``numpy_blas`` (when numpy reports it) and ``mujoco`` (only when installed). Every value is a
     string; a required package that is missing reads "not installed".
     """
-    versions = {"python": platform.python_version()}
+    versions = {"python": platform.python_version(), "corl": __version__}
     for name in _REQUIRED:
         versions[name] = _package_version(name) or NOT_INSTALLED
     for name in _OPTIONAL:

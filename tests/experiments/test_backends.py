@@ -41,19 +41,19 @@ def test_an_address_needs_a_cluster_backend(tmp_path):
 @pytest.mark.parametrize("backend", ["ray", "dask"])
 def test_a_missing_package_names_the_extra_to_install(monkeypatch, backend):
     monkeypatch.setitem(sys.modules, _EXTRA_MODULES[backend], None)  # as if not installed: import fails
-    message = rf"backend '{backend}' needs the extra: pip install 'corl\[{backend}\]'"
+    message = rf"backend '{backend}' needs the extra: pip install 'corl-skills\[{backend}\]'"
     with pytest.raises(MissingExtraError, match=message):
         with cluster(backend, 1):
             pass
     res = CliRunner().invoke(app, ["bench", "synthetic", "--starts", "1", "--backend", backend, "--quiet"])
-    assert res.exit_code == 2 and f"pip install 'corl[{backend}]'" in res.output
+    assert res.exit_code == 2 and f"pip install 'corl-skills[{backend}]'" in res.output
 
 
 @pytest.mark.parametrize("backend, address, what", [("ray", "127.0.0.1:1", "Ray cluster"),
                                                    ("dask", "tcp://127.0.0.1:1", "Dask scheduler")])
 def test_an_unreachable_cluster_fails_at_once_with_a_hint(backend, address, what):
     if find_spec(_EXTRA_MODULES[backend]) is None:
-        pytest.skip(f"needs the extra: pip install 'corl[{backend}]'")
+        pytest.skip(f"needs the extra: pip install 'corl-skills[{backend}]'")
     with pytest.raises(InputError, match=f"cannot reach the {what} at '{address}'.*leave out --address"):
         with cluster(backend, 1, address):  # port 1 on the loopback refuses at once
             pass
@@ -82,7 +82,7 @@ def _table(results) -> dict:
 @pytest.mark.slow
 @pytest.mark.filterwarnings("ignore:`apply_async` is deprecated:DeprecationWarning")  # Ray's joblib backend
 @pytest.mark.skipif(find_spec("ray") is None or find_spec("distributed") is None,
-                    reason="needs the extras: pip install 'corl[ray,dask]'")
+                    reason="needs the extras: pip install 'corl-skills[ray,dask]'")
 def test_ray_and_dask_clusters_give_the_loky_table():
     assert BACKENDS == ("loky", "ray", "dask")
     reference = sweep(METHODS, 3, seed=0, jobs=2, backend="loky")

@@ -49,8 +49,8 @@ def main() -> None:
             raise
         extra = _EXTRAS.get((getattr(exc, "name", None) or "").split(".")[0]) if isinstance(exc, ImportError) else None
         if extra is not None:  # an optional dependency: say which extra brings it
-            typer.echo(f"error: this command needs {exc.name}, part of corl's '{extra}' extra: pip install {exc.name} "
-                       f"(or, in a checkout of corl, pip install -e '.[{extra}]')", err=True)
+            typer.echo(f"error: this command needs {exc.name}, part of corl's '{extra}' extra: pip install "
+                       f"'corl-skills[{extra}]' (in a checkout of corl: pip install -e '.[{extra}]')", err=True)
             sys.exit(2)
         typer.echo(f"error: internal error {type(exc).__name__}: {exc}. This is a bug in corl or in the task; "
                    "set CORL_DEBUG=1 to see the traceback, and please report it", err=True)

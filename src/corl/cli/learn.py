@@ -69,6 +69,9 @@ def run(
     NEW_PATHS.track(out, store_path)
     make_folder("--out", out)  # where summary.json goes, checked before any trial
     t0 = time.perf_counter()
+    renders, why = _rendering() if video else (True, "")  # before the task imports MuJoCo: a backend that works
+    if not renders:  # asked for a video it cannot have: said before any trial
+        fail(f"--video: {why} (or run without --video)")
     try:  # every check, the task and the learner (replayed) before the store is opened for writing
         the_task, session, seen = _run_to_continue(task, store_path, resume=resume, method=method, seed=seed,
                                                    rollout_every_step=rollout_every_step, quiet=quiet, context=context,
@@ -130,12 +133,24 @@ def run(
         if not quiet and not json_out:
             typer.echo("rendering the video ...", err=True)
         payload["files"].update(write_run_video(the_task, session.learner, out))
+        if "video_skipped" in payload["files"]:  # asked for and not made: never exit 0 without it
+            write_json(out / "summary.json", payload)
+            fail(f"--video: no video ({payload['files']['video_skipped']}); the run's results are in {out} "
+                 f"(summary.json, the store): render it later with corl report --store {store_path} --video")
     elif hasattr(the_task, "render_comparison"):
         payload["files"]["video_skipped"] = "not asked for; add --video (or render it later: corl report --video)"
     write_json(out / "summary.json", payload)
     if json_out:
         return print_json(payload)
     typer.echo(run_text(payload, out / "summary.json"))
+
+
+def _rendering() -> tuple[bool, str]:
+    """(True, "") when this machine renders offscreen, choosing MUJOCO_GL first when headless
+    (:func:`corl.mujoco.video.ensure_rendering`), else (False, one line that says what to install)."""
+    from corl.mujoco.video import ensure_rendering
+
+    return ensure_rendering()
 
 
 def ask(

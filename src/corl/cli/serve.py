@@ -44,6 +44,10 @@ def serve(
     except MissingExtraError as exc:
         fail(str(exc))
     NEW_PATHS.track(store)
+    if video:  # before the task imports MuJoCo: an offscreen backend that works (the video process inherits it)
+        from corl.mujoco.video import ensure_rendering
+
+        ensure_rendering()  # when none does, the dashboard's video panel says what to install
     try:
         token = None if token_file is None else read_token(token_file)
         check_bind(host, token)

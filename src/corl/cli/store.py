@@ -106,6 +106,10 @@ def report(store: Path = typer.Option(..., help="run store"),
 
     check_args(path=("--store", store), task=("--task", task), folder=("--out", out))
     NEW_PATHS.track(out)
+    if video and task is not None:  # before the task imports MuJoCo: an offscreen backend that works
+        from corl.mujoco.video import ensure_rendering
+
+        ensure_rendering()  # when none does, the page says why it has no video
     with progress_tracker("report", quiet=quiet, log=True, json_out=json_out) as tracker:  # messages only
         try:
             pages = write_reports(store, out, run_id=run_id, video=video, log=tracker.message, task_spec=task)

@@ -48,7 +48,7 @@ def check_backend(backend: str, address: str | None = None) -> None:
     if backend in _EXTRAS:
         module, extra = _EXTRAS[backend]
         if find_spec(module) is None:
-            raise MissingExtraError(f"backend '{backend}' needs the extra: pip install 'corl[{extra}]'")
+            raise MissingExtraError(f"backend '{backend}' needs the extra: pip install 'corl-skills[{extra}]'")
 
 
 @contextmanager

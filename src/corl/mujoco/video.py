@@ -1,16 +1,16 @@
-"""Offscreen video of a rollout: MuJoCo's renderer (``MUJOCO_GL=egl`` on a machine without a display).
+"""Offscreen video of a rollout: MuJoCo's renderer, headless by default.
 
 MuJoCo reads ``MUJOCO_GL`` once, when it is first imported, and then fails to import at all if
-that backend's library is missing; so the kit never sets it: set it in the environment
-(``MUJOCO_GL=egl corl run ...``). Without it and without a display, making a renderer raises, and
-``corl run`` / ``corl report`` skip the video and keep the results.
+that backend's library is missing. ``import corl`` picks an offscreen backend on a machine without
+a display when ``MUJOCO_GL`` is unset (:mod:`corl.offscreen`: EGL, else OSMesa); a user's own
+``MUJOCO_GL`` is kept. :func:`ensure_rendering` checks that rendering works before a command that
+was asked for a video does any work; a renderer that still cannot be made raises.
 
 :class:`FrameRecorder` is an ``on_step`` hook for :func:`corl.mujoco.track` that grabs frames at a
 given rate; :func:`caption` burns a caption in; :func:`write_side_by_side` puts two trials (the
 demonstration and the learned motion) next to each other in one MP4 (GIF without ffmpeg).
-:func:`rendering_available` says whether this machine can render at all, so that a run without
-OpenGL skips its video instead of failing; :func:`make_renderer` makes a renderer or raises, without
-the warnings and the stray traceback MuJoCo prints when it cannot.
+:func:`rendering_available` says whether this process can render at all; :func:`make_renderer`
+makes a renderer or raises, without the warnings and the stray traceback MuJoCo prints when it cannot.
 """
 
 from __future__ import annotations
@@ -24,11 +24,13 @@ from pathlib import Path
 
 import numpy as np
 
+from corl import offscreen
+
 __all__ = ["Camera", "FrameRecorder", "caption", "write_side_by_side", "rendering_available", "make_renderer",
-           "RENDERING_HINT"]
+           "ensure_rendering", "RENDERING_HINT"]
 
 #: What to do when no offscreen OpenGL context can be made (said wherever a video is skipped).
-RENDERING_HINT = "Offscreen rendering needs EGL or OSMesa (Debian: libegl1 libgl1); set MUJOCO_GL=egl or osmesa"
+RENDERING_HINT = f"To render offscreen, {offscreen.INSTALL_HINT}"
 
 #: Shadow-map size (pixels) of the kit's renderers. MuJoCo's default, 4096, is what a CPU renderer
 #: (Mesa's llvmpipe under EGL) spends most of a frame on: the door's 480x360 frame took 95 ms at
@@ -141,6 +143,14 @@ def rendering_available() -> tuple[bool, str]:
     except Exception as exc:  # no EGL / OSMesa library, or no GPU driver
         return False, f"{type(exc).__name__}: {exc}. {RENDERING_HINT}"
     return True, ""
+
+
+def ensure_rendering() -> tuple[bool, str]:
+    """``(True, "")`` when this process can render (choosing a backend first if MuJoCo is not imported
+    yet: :func:`corl.offscreen.ensure`), else ``(False, one line that says what to install)``."""
+    if "mujoco" not in sys.modules:
+        return offscreen.ensure()
+    return rendering_available()
 
 
 class FrameRecorder:

@@ -6,7 +6,7 @@ every trial is committed to the run store before it is answered (:mod:`corl.serv
 HTTP API and its rules are in :mod:`corl.serve.app` and :mod:`corl.serve.guard`, the deadlines and
 caps that keep it serving under floods and slow clients in :mod:`corl.serve.limits` and
 :mod:`corl.serve.connections`; the client is :class:`corl.client.Client`. Needs the ``serve``
-extra: ``pip install 'corl[serve]'``.
+extra: ``pip install 'corl-skills[serve]'``.
 
 From Python, :func:`background` runs a server in a thread (a notebook, a test)::
 
@@ -37,7 +37,7 @@ def _require() -> None:
         import starlette  # noqa: F401
         import uvicorn  # noqa: F401
     except ImportError as exc:
-        raise MissingExtraError(f"corl serve needs {exc.name}: pip install 'corl[serve]' (Starlette and uvicorn)") \
+        raise MissingExtraError(f"corl serve needs {exc.name}: pip install 'corl-skills[serve]' (Starlette and uvicorn)") \
             from None
 
 
