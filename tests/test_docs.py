@@ -10,6 +10,10 @@ block names its language. An HTML comment on the line before a block changes how
 * ``<!-- docs-test: skip REASON -->``: not run (a handful at most, each with its reason);
 * ``<!-- docs-test: serve ARGS -->``: run while ``corl serve --store <tmp>/serve-<ARGS>.corl --port P ARGS``
   answers on a free port P (blocks with the same ARGS continue one run); ``http://127.0.0.1:8765`` in the block is replaced by its address.
+
+A comment line right after a ``print(...)`` line of a python block is what that print writes: the
+block must print a line equal to it (or to its text before ``": "``, where the comment goes on to
+explain), so a page never promises an output the code does not give.
 """
 
 from __future__ import annotations
@@ -135,6 +139,18 @@ def _server(folder: Path, argument: str, env: dict[str, str]):
             process.wait()
 
 
+def promised_output(code: str) -> list[str]:
+    """The comment lines right after a ``print(...)`` line: the lines the block promises to print."""
+    lines = code.splitlines()
+    return [after.strip()[2:].strip() for line, after in zip(lines, lines[1:])
+            if line.lstrip().startswith("print(") and after.strip().startswith("# ")]
+
+
+def _printed(promise: str, output: str) -> bool:
+    printed = [line.strip() for line in output.splitlines()]
+    return any(promise == line or promise.startswith(line + ": ") for line in printed if line)
+
+
 def _run_python(block: Block, code: str, namespace: dict) -> None:
     out = io.StringIO()
     try:
@@ -143,6 +159,9 @@ def _run_python(block: Block, code: str, namespace: dict) -> None:
     except Exception as exc:
         pytest.fail(f"{block.where}: the python block raised {type(exc).__name__}: {exc}\n"
                     f"output:\n{_tail(out.getvalue())}")
+    for promise in promised_output(code):
+        assert _printed(promise, out.getvalue()), \
+            f"{block.where}: the page promises the output {promise!r}; the block printed:\n{_tail(out.getvalue())}"
 
 
 def _run_shell(block: Block, code: str, folder: Path, env: dict[str, str]) -> None:
@@ -187,6 +206,13 @@ def test_every_code_block_of_the_page_runs(page, tmp_path, monkeypatch):
                 _run_python(block, code, namespace)
             else:
                 _run_shell(block, code, tmp_path, env)
+
+
+def test_a_promised_output_is_read_and_checked():
+    code = "x = 1\nprint(x, 2.0)\n# 1 2.0: one and two\nprint(x)  # a remark, not an output\ny = 2\n"
+    assert promised_output(code) == ["1 2.0: one and two"]
+    assert _printed("1 2.0: one and two", "1 2.0\n") and _printed("1 2.0", "0\n1 2.0\n")
+    assert not _printed("[-0.0001] 1.00000", "[-9.20388473e-05] 0.9999999576442532\n")
 
 
 def test_skipped_blocks_say_why_and_are_few():

@@ -31,8 +31,25 @@ def _pyplot():
     return plt
 
 
-def _save(plt, fig, path) -> Path:
-    fig.tight_layout()
+def _plain_ticks(fig) -> None:
+    """Tick labels that read as the values they mark: no offset ("1e-8+5.569111e-1" above ticks 4..7
+    reads as values from 4 to 7) and no common exponent, on every linear axis, colour bars included."""
+    from matplotlib.ticker import ScalarFormatter
+
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            formatter = axis.get_major_formatter()
+            if isinstance(formatter, ScalarFormatter):
+                formatter.set_useOffset(False)
+                formatter.set_scientific(False)
+
+
+def _save(plt, fig, path, *, trial: int | None = None) -> Path:
+    """Plain tick labels, the trial the figure was drawn at in its corner (it lags a live run), then a PNG."""
+    _plain_ticks(fig)
+    if trial is not None:
+        fig.text(0.995, 0.005, f"drawn at trial {trial}", ha="right", va="bottom", fontsize=8, color="0.35")
+    fig.tight_layout(rect=(0, 0.02, 1, 1) if trial is not None else None)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
@@ -78,7 +95,13 @@ def plot_learning_curve(learner, path: str | Path, *, title: str = "Motion optim
     if "tab:orange" in colors:
         ax.scatter([], [], c="tab:orange", s=12, label="phase step")
     ax.legend(loc="upper right", fontsize=8)
-    return _save(plt, fig, path)
+    return _save(plt, fig, path, trial=_last_trial(learner))
+
+
+def _last_trial(learner) -> int | None:
+    """Index of the learner's last told trial, None before its first."""
+    history = getattr(learner, "history", None)
+    return history[-1][0].index if history else None
 
 
 @dataclass(frozen=True)
@@ -88,7 +111,8 @@ class ReturnMapData:
 
     ``X`` (d, m) theta of every black-box trial, demonstration included; ``success`` (d,); ``returns``
     (d,); ``bounds`` the task's theta bounds; ``best`` ``(theta (m,), return)`` or None; ``config``
-    the black-box optimizer's config (its GP settings), or None.
+    the black-box optimizer's config (its GP settings), or None; ``trial`` the index of the learner's
+    last told trial when the data was copied (printed on the figure), or None.
     """
 
     X: np.ndarray
@@ -97,6 +121,7 @@ class ReturnMapData:
     bounds: object
     best: tuple | None
     config: object = None
+    trial: int | None = None
 
 
 def return_map_data(learner) -> ReturnMapData:
@@ -108,13 +133,14 @@ def return_map_data(learner) -> ReturnMapData:
     return ReturnMapData(np.array(opt.X_, dtype=float), np.array(opt.success_, dtype=bool),
                          np.array(opt.returns_, dtype=float), learner.task.theta_bounds,
                          None if best is None else (np.array(best.theta, dtype=float), float(best.return_)),
-                         getattr(opt, "config", None))
+                         getattr(opt, "config", None), _last_trial(learner))
 
 
 def plot_return_map(learner, path: str | Path, *, regression=None, classifier=None,
                     labels=("theta 1", "theta 2"), title: str = "Learned return R(theta) (Fig. 2c)") -> Path:
-    """GP mean of R over theta with successes (blue), failures (red), the classifier's decision
-    boundary (red line, p = 0.5) and the best theta (magenta star). 1-D or 2-D theta.
+    """GP mean of R over theta with successes (blue), failures (red), where the classifier predicts
+    success (p > 0.5: a green band in 1-D, inside the red boundary line in 2-D) and the learner's best
+    theta (magenta star). 1-D or 2-D theta.
 
     ``learner``: a learner after its first black-box step, or its :class:`ReturnMapData`."""
     data = learner if isinstance(learner, ReturnMapData) else return_map_data(learner)
@@ -150,7 +176,7 @@ def _draw_return_map(data: ReturnMapData, path, *, regression, classifier, label
         ax.scatter(X[ok, 0], r[ok], c="tab:blue", s=18, zorder=3, label="success")
         ax.scatter(X[~s, 0], np.full((~s).sum(), lo + 0.1), c="tab:red", marker="x", s=30, zorder=3, label="failure")
         if best_theta is not None:
-            ax.scatter([best_theta[0]], [best_return], c="magenta", marker="*", s=200, zorder=4, label="best")
+            ax.scatter([best_theta[0]], [best_return], c="magenta", marker="*", s=200, zorder=4, label="learner's best")
         ax.set_xlabel(labels[0])
         ax.set_ylabel("R")
     else:  # 2-D (more was refused above, before the fits)
@@ -161,20 +187,24 @@ def _draw_return_map(data: ReturnMapData, path, *, regression, classifier, label
         G = np.column_stack([A.ravel(), B.ravel()])
         mu, _ = reg.predict(G)
         p = clf.predict_proba(G)
-        cs = ax.contourf(A, B, mu.reshape(n, n), levels=20, cmap="viridis")
+        low, high = float(np.min(mu)), float(np.max(mu))
+        spread = max(high - low, 1e-3 * max(1.0, abs(high)))  # a flat mean: one colour, not noise in 1e-8 steps
+        middle = 0.5 * (low + high)
+        levels = np.linspace(middle - spread / 2, middle + spread / 2, 21)
+        cs = ax.contourf(A, B, np.clip(mu.reshape(n, n), levels[0], levels[-1]), levels=levels, cmap="viridis")
         fig.colorbar(cs, ax=ax, label="GP mean of R")
         ax.contour(A, B, p.reshape(n, n), levels=[0.5], colors="red", linewidths=2)
         ax.scatter(X[ok, 0], X[ok, 1], c="tab:blue", edgecolors="white", s=28, label="success")
         ax.scatter(X[~s, 0], X[~s, 1], c="tab:red", edgecolors="white", s=28, label="failure")
         if best_theta is not None:
             ax.scatter([best_theta[0]], [best_theta[1]], c="magenta", marker="*", s=250, edgecolors="k",
-                       label="best")
+                       label="learner's best")
         ax.plot([], [], color="red", lw=2, label="classifier boundary")
         ax.set_xlabel(labels[0])
         ax.set_ylabel(labels[1])
     ax.set_title(title)
     ax.legend(loc="best", fontsize=8)
-    return _save(plt, fig, path)
+    return _save(plt, fig, path, trial=data.trial)
 
 
 def plot_trials(records, J, path: str | Path) -> Path:
@@ -184,7 +214,7 @@ def plot_trials(records, J, path: str | Path) -> Path:
     analytic costs, NaN where unknown.
 
     Failures have no return: they are red crosses along the bottom of the lower panel. The black
-    step line is the best return so far; dotted vertical lines separate Algorithm 1's rounds.
+    step line is the best observed reading so far; dotted vertical lines separate Algorithm 1's rounds.
     """
     plt = _pyplot()
     told = [(i, r) for i, r in enumerate(records) if r.outcome is not None]
@@ -210,7 +240,8 @@ def plot_trials(records, J, path: str | Path) -> Path:
     if good.any():
         best_so_far = np.fmax.accumulate(np.where(good, R, -np.inf))
         shown = np.isfinite(best_so_far)
-        bottom.step(x[shown], best_so_far[shown], where="post", color="k", lw=1.2, label="best so far")
+        bottom.step(x[shown], best_so_far[shown], where="post", color="k", lw=1.2,
+                    label="best observed reading so far")
     if (~ok).any():
         bottom.scatter(x[~ok], np.full((~ok).sum(), 0.04), transform=bottom.get_xaxis_transform(), s=30,
                        c="tab:red", marker="x", label=f"failure ({(~ok).sum()}, no return)")
@@ -220,7 +251,7 @@ def plot_trials(records, J, path: str | Path) -> Path:
     bottom.set_xlabel("trial")
     bottom.set_ylabel("return R")
     bottom.legend(loc="upper left", fontsize=8)  # returns tend to rise: the early top is free
-    return _save(plt, fig, path)
+    return _save(plt, fig, path, trial=int(x[-1]) if len(x) else None)
 
 
 def plot_trial_curves(curves: dict[str, dict], path: str | Path) -> Path:

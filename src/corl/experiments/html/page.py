@@ -93,6 +93,12 @@ def _fmt(value: Any, digits: int = 4) -> str:
     return "-" if math.isnan(x) else f"{x:.{digits}g}"
 
 
+def _fmt_J(value: Any) -> str:
+    """J in one format down the table's column (it spans decades): 4 significant digits, exponent form,
+    as the dashboard of corl serve writes it; '-' for None and NaN."""
+    return "-" if value is None or math.isnan(float(value)) else f"{float(value):.3e}"
+
+
 def _kv_table(rows: Iterable[tuple[str, Any]], *, css: str = "kv") -> str:
     body = "".join(f"<tr><td>{escape(str(k))}</td><td>{escape(_plain(v))}</td></tr>" for k, v in rows)
     return f'<table class="{css}"><tbody>{body}</tbody></table>'
@@ -225,7 +231,7 @@ def _trials(report) -> str:
         theta = "".join(f'<td class="num">{_fmt(v, 5)}</td>' for v in p.theta)
         rows.append(f'<tr class="{css}"><td class="num">{p.index}</td><td class="num">{p.round}</td>'
                     f"<td>{escape(str(p.step))}</td>{theta}<td class=\"ok\">{ok}</td>"
-                    f'<td class="num">{ret}</td><td class="num">{_fmt(report.J[i], 5)}</td></tr>')
+                    f'<td class="num">{ret}</td><td class="num">{_fmt_J(report.J[i])}</td></tr>')
     legend = "; ".join(f"θ{k + 1}: {escape(label)}" for k, label in enumerate(labels))
     return (f'<section id="trials"><h2>Trials ({len(rows)})</h2><div class="scroll">'
             '<table class="trials"><thead><tr><th class="num">#</th><th class="num">round</th><th>step</th>'

@@ -138,7 +138,8 @@ def _figures(report: RunReport, task, learner, folder: Path) -> None:
 
     if any(r.outcome is not None for r in report.records):
         report.curves = ("J(w) of every trial (top; values below 1e-12 are drawn at 1e-12) and its return "
-                         "(bottom); failures in red, dotted lines separate the rounds of Algorithm 1.",
+                         "(bottom, with the best observed reading so far); failures in red, dotted lines separate "
+                         "the rounds of Algorithm 1.",
                          data_uri(plot_trials(report.records, report.J, folder / "trials.png")))
     if learner is None:
         return
@@ -158,8 +159,10 @@ def _figures(report: RunReport, task, learner, folder: Path) -> None:
     except (ValueError, CorlError) as exc:
         report.notes.append(f"No return map: {exc}.")
         return
-    report.return_map = ("GP mean of R over theta from the last round's black-box data; red line: the "
-                         "success classifier's boundary p = 0.5; star: the best theta.", data_uri(path))
+    where = ("green band: where the success classifier predicts success (p > 0.5)" if task.theta_bounds.dim == 1
+             else "red line: the success classifier's boundary p = 0.5")
+    report.return_map = (f"GP mean of R over theta from the last round's black-box data; {where}; star: the "
+                         "learner's best theta.", data_uri(path))
 
 
 def _existing_video(store_path: Path, run_id: int, n_runs: int) -> Path | None:

@@ -2,6 +2,10 @@
 "use strict";
 const $ = (id) => document.getElementById(id);
 const fmt = (x, d = 4) => (x === null || x === undefined) ? "\u2013" : Number(x).toFixed(d);
+// J spans decades (the door: 2381 -> 205; the synthetic task: 1e-6): one format down the column, 4 digits,
+// the exponent with two digits as Python's "%.3e" writes it (corl report's table).
+const fmtJ = (x) => (x === null || x === undefined) ? "\u2013" :
+  Number(x).toExponential(3).replace(/e([+-])(\d)$/, "e$10$2");
 const rows = new Map();  // trial index -> <tr>
 
 function setText(id, text) { $(id).textContent = text; }
@@ -40,7 +44,7 @@ function showRow(t) {
   tr.className = outcome;
   tr.dataset.outcome = outcome;
   const cells = [t.trial, t.step, t.round, JSON.stringify(t.theta.map((v) => +v.toFixed(4))), outcome,
-    fmt(t["return"]), t.J === null ? "\u2013" : Number(t.J).toPrecision(4)];
+    fmt(t["return"]), fmtJ(t.J)];
   tr.replaceChildren(...cells.map((c) => { const td = document.createElement("td"); td.textContent = c; return td; }));
 }
 
