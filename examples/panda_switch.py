@@ -33,9 +33,8 @@ import numpy as np
 
 from corl.mujoco import (Camera, ContactPairs, FrameRecorder, Gripper, Kinematics, PDController, Robot, Target,
                          add_joint_equality, add_servos, caption, coordinate_feature, example_robot_dir, fit_demonstration,
-                         orientation_feature, position_feature, project_demonstration,
+                         orientation_feature, parse_mjcf, position_feature, project_demonstration,
                          solve_waypoints, stack, track, urdf_to_mjcf, write_side_by_side)
-from corl.mujoco.parse import parse_mjcf
 from corl.problem import Bounds, Demonstration, Outcome, check_theta
 from corl.trajectory import BSpline, TaskSpaceFeature, TrajectoryProblem, acceleration_feature, configuration_feature
 

@@ -22,8 +22,7 @@ import numpy as np
 
 from corl.problem import Bounds, Demonstration, Outcome
 from corl.realise import project_demonstration
-from corl.trajectory.bspline import BSpline
-from corl.trajectory.features import TaskSpaceFeature, TrajectoryProblem, acceleration_feature, configuration_feature
+from corl.trajectory import BSpline, TaskSpaceFeature, TrajectoryProblem, acceleration_feature, configuration_feature
 
 LINKS = np.array([0.4, 0.3, 0.2])
 X_FACE, Y_CENTRE, HALF_WIDTH = 0.75, 0.25, 0.03

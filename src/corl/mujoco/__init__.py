@@ -4,7 +4,8 @@
 step                            functions
 ==============================  ================================================================
 load, lock joints, gripper      :func:`load_spec`, :class:`Gripper`, :class:`Robot`,
-                                :func:`example_robot_dir`
+                                :func:`example_robot_dir`, :func:`parse_mjcf` (MJCF text or file
+                                to an ``MjSpec``, nothing locked)
 a scene from another framework  :func:`load_spec` (``robot_root``), :func:`body_pose`,
                                 :func:`site_pose`
 forward kinematics (Eq. 6)      :class:`Kinematics` (``site``, ``body``, ``position_jacobian``,
@@ -36,13 +37,14 @@ from corl.mujoco.forces import (ContactPairs, ForceSensor, add_force_sensor, con
                                touching)
 from corl.mujoco.ik import Target, solve_ik, solve_waypoints
 from corl.mujoco.kinematics import Frame, Kinematics, rotation_error, rotation_error_jacobian, skew
+from corl.mujoco.parse import parse_mjcf
 from corl.mujoco.robot import Gripper, Robot, example_robot_dir, load_spec, urdf_to_mjcf
 from corl.mujoco.scene import body_pose, site_pose
 from corl.mujoco.video import (Camera, FrameRecorder, caption, make_renderer, rendering_available,
                                write_side_by_side)
 
 __all__ = [
-    "Gripper", "Robot", "load_spec", "urdf_to_mjcf", "example_robot_dir", "body_pose", "site_pose",
+    "Gripper", "Robot", "load_spec", "parse_mjcf", "urdf_to_mjcf", "example_robot_dir", "body_pose", "site_pose",
     "Frame", "Kinematics", "rotation_error", "rotation_error_jacobian", "skew",
     "position_feature", "orientation_feature", "coordinate_feature", "stack",
     "Target", "solve_ik", "solve_waypoints",
