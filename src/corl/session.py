@@ -51,9 +51,10 @@ def _settings(task: Task, corl_overrides: dict | None):
 
 
 def _build_in_context(task: Task, method: str, seed: int, corl_overrides: dict | None, context, store,
-                      upto: dict):
+                      upto: dict, skill: dict | None = None):
     """The learner of a run in ``context``: what the store's runs named by ``upto`` (run id -> told
-    trials, :func:`corl.contexts.snapshot`) taught (:mod:`corl.contexts`)."""
+    trials, :func:`corl.contexts.snapshot`) taught (:mod:`corl.contexts`); ``skill``: settings of its
+    :class:`corl.contexts.Skill` (``{"p_min": 0.9}``), the defaults when None."""
     from corl.contexts import ContextualCORL, Skill, context_task, failed_motions, learned, plain_learner
     from corl.contexts.skill import scene_of
 
@@ -67,7 +68,7 @@ def _build_in_context(task: Task, method: str, seed: int, corl_overrides: dict |
     data, anchors = learned(store, task, upto=upto) if store is not None and upto else (None, [])
     if not anchors:  # the first context: Algorithm 1 from the demonstration of that scene
         return plain_learner(scene, seed=seed, settings=settings)
-    return ContextualCORL(task, c, Skill(task, data, anchors), settings=settings, seed=seed,
+    return ContextualCORL(task, c, Skill(task, data, anchors, **(skill or {})), settings=settings, seed=seed,
                           failed=failed_motions(store, task, c, upto=upto))
 
 
@@ -104,7 +105,8 @@ class StoredRun:
     # -- creating and reopening ----------------------------------------------------------------
     @classmethod
     def new(cls, task: Task, *, task_spec: str, method: str, seed: int,
-            corl_overrides: dict | None = None, context=None, learned_from: RunStore | None = None) -> "StoredRun":
+            corl_overrides: dict | None = None, context=None, learned_from: RunStore | None = None,
+            skill: dict | None = None) -> "StoredRun":
         """A new run of ``method`` on ``task``, in no store yet (:meth:`attach` creates it there).
 
         ``task_spec`` is how the command line named the task; ``corl_overrides`` (e.g.
@@ -112,6 +114,8 @@ class StoredRun:
         the run and applied again when it is reopened. A method that cannot run the task raises here.
         ``context`` (k,): learn in that scene from what the runs of ``learned_from`` (the store it
         will be attached to, read-only) taught (:mod:`corl.contexts`); the run records its context.
+        ``skill``: settings of the skill it starts from (``{"p_min": 0.9}``, :class:`corl.contexts.Skill`),
+        stored with the run (``config["skill"]``) and applied again when it is reopened.
         A :class:`corl.tasks.noisy.NoisyTask` records its sensors (``config["noise"]``); reopening the
         run takes the task as given, so wrap it in the same sensors again (``corl run --resume`` does).
         """
@@ -124,7 +128,9 @@ class StoredRun:
 
             context = check_context(task, context)
             upto = snapshot(learned_from, context_task(task)) if learned_from is not None else {}
-            learner = _build_in_context(task, method, seed, corl_overrides, context, learned_from, upto)
+            learner = _build_in_context(task, method, seed, corl_overrides, context, learned_from, upto, skill)
+        elif skill:
+            raise InputError("skill settings (--p-min) apply to a run in a context: add --context, or drop them")
         else:
             learner = _build(task, method, seed, corl_overrides)
         config = {"task_spec": task_spec, "task_name": task.name}
@@ -138,6 +144,8 @@ class StoredRun:
             config["contextual"] = context is not None
             if context is not None:
                 config["learned_from"] = upto  # exactly what it learned from: reopened, it reads the same
+                if skill:
+                    config["skill"] = dict(skill)
         cfg = getattr(learner, "config", None)
         if cfg is not None:
             config["learner"] = _plain(asdict(cfg))
@@ -172,7 +180,8 @@ class StoredRun:
             if upto is None:  # a run of corl before learned_from was recorded: the runs before it, whole
                 upto = {str(r.id): r.n_told for r in store.runs() if r.id < info.id}
             learner = _build_in_context(task, info.method, seed, info.config.get("corl_overrides"),
-                                        check_context(task, info.config["context"]), store, upto)
+                                        check_context(task, info.config["context"]), store, upto,
+                                        info.config.get("skill"))
         else:
             learner = _build(task, info.method, seed, info.config.get("corl_overrides"))
         ended = store.end(info.id)

@@ -147,21 +147,32 @@ def sweep(
     out: Path = typer.Option(Path("results/sweep"), help="folder for sweep.csv, sweep.json and sweep.png"),
     seed: int = typer.Option(0, help="seed the task factory gets (when it takes one)"),
     jobs: int = typer.Option(1, help="parallel workers (-1: all cores)"),
+    context: Optional[str] = typer.Option(None, help="sweep the task in this scene (a task with contexts), from the "
+                                                     "scene's own demonstration: comma-separated numbers, e.g. 0.02,-0.01"),
     backend: str = BACKEND, address: Optional[str] = ADDRESS,
     quiet: bool = QUIET, json_out: bool = JSON_OUT, log: bool = LOG,
 ) -> None:
     """Ground truth of a simulated task: success and return over a theta grid, each theta realised
-    from the demonstration with Eq. 18 as the learner does it, then rolled out."""
+    from the demonstration with Eq. 18 as the learner does it, then rolled out (in scene --context C: from
+    that scene's demonstration)."""
     from corl.errors import CorlError
-    from corl.experiments.sweep import sweep_command
+    from corl.experiments.sweep import TaskSpec, sweep_command
 
     check_args(task=("TASK", task), seed=("--seed", seed), jobs=("--jobs", jobs), folder=("--out", out))
+    c = None
+    if context is not None:
+        from corl.cli.skill import parse_context
+
+        try:
+            c = parse_context(TaskSpec(task, seed)(), context)
+        except CorlError as exc:
+            fail(str(exc))
     NEW_PATHS.track(out)
     make_folder("--out", out)
     try:
         with progress_tracker(f"sweep {task}", quiet=quiet, log=log, json_out=json_out) as tracker:
             payload = sweep_command(task, grid, out, seed=seed, jobs=jobs, backend=backend, address=address,
-                                    tracker=tracker)
+                                    tracker=tracker, context=c)
     except CorlError as exc:
         fail(str(exc))
     if json_out:

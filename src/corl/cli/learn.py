@@ -16,7 +16,7 @@ import typer
 from corl.arguments import NEW_PATHS, latest_run, plain_number
 from corl.cli.common import (JSON_OUT, LOG, QUIET, check_args, fail, make_folder, open_store, print_json,
                              progress_tracker, write_json)
-from corl.cli.skill import context_text, parse_context, recorded_context, scene_of
+from corl.cli.skill import P_MIN_OPTION, context_text, parse_context, recorded_context, scene_of, skill_settings
 
 __all__ = ["run", "ask", "tell"]
 
@@ -32,6 +32,7 @@ def run(
     context: Optional[str] = typer.Option(None, help="learn in this scene (a task with contexts): comma-separated "
                                                      "numbers, e.g. 0.02,-0.01,0,0.1; a new run in the store that "
                                                      "starts from what its runs in other contexts learned"),
+    p_min: Optional[str] = P_MIN_OPTION,
     quiet: bool = QUIET, json_out: bool = JSON_OUT, log: bool = LOG,
     video: bool = typer.Option(False, "--video/--no-video", help="after learning, render the demonstration beside "
                                                                   "the learned motion (tasks that render)"),
@@ -62,6 +63,7 @@ def run(
         fail(f"unknown method '{method}'; choose from {', '.join(METHODS)}")
     if end_at_error and not resume:
         fail("--end-at-error ends the run being resumed; add --resume")
+    skill = skill_settings(p_min, context=context)
     try:
         sensors = _sensor_flags(return_noise, flip)
     except CorlError as exc:
@@ -75,7 +77,7 @@ def run(
     try:  # every check, the task and the learner (replayed) before the store is opened for writing
         the_task, session, seen = _run_to_continue(task, store_path, resume=resume, method=method, seed=seed,
                                                    rollout_every_step=rollout_every_step, quiet=quiet, context=context,
-                                                   sensors=sensors, end_at_error=end_at_error)
+                                                   sensors=sensors, end_at_error=end_at_error, skill=skill)
         if end_at_error and session.ended is None:
             fail(f"run {session.run_id} in {store_path} resumes without an error of the task's code, so there is "
                  "nothing to end it at: drop --end-at-error to go on with it")
@@ -168,6 +170,7 @@ def ask(
     context: Optional[str] = typer.Option(None, help="a new run in this scene (a task with contexts), learning from "
                                                      "the store's runs in other contexts: comma-separated numbers, "
                                                      "e.g. 0.02,-0.01,0,0.1; the same context continues its run"),
+    p_min: Optional[str] = P_MIN_OPTION,
 ) -> None:
     """Write the next trial's trajectory (CSV and NPZ) and print its theta (real-robot loop)."""
     from corl.errors import CorlError
@@ -178,10 +181,11 @@ def ask(
                folder=("--out", out))
     if method is not None and method not in METHODS:
         fail(f"unknown method '{method}'; choose from {', '.join(METHODS)}")
+    skill = skill_settings(p_min, context=context)
     NEW_PATHS.track(store, *([out] if out is not None else []))
     try:  # the trial is computed and checked before the store is opened for writing
         the_task, session, seen = _run_to_ask(task, store, method=method, seed=seed, raw=raw, rate=rate,
-                                              context=context)
+                                              context=context, skill=skill)
         proposal = session.learner.ask()
         trajectory = None if raw else trajectory_of(the_task, proposal.w, rate)
         with open_store(store) as db:
@@ -194,7 +198,7 @@ def ask(
                  context=getattr(the_task, "context", None) if getattr(the_task, "with_context", None) else None)
 
 
-def _run_to_ask(task: str, store: Path, *, method, seed, raw: bool, rate: float, context):
+def _run_to_ask(task: str, store: Path, *, method, seed, raw: bool, rate: float, context, skill=None):
     """``(task in the run's scene, StoredRun, id of the store's latest run)`` of ``corl ask``: the store's
     latest run replayed read-only, or a new one (with ``--context``: in that scene, learning from the store)."""
     import numpy as np
@@ -212,7 +216,8 @@ def _run_to_ask(task: str, store: Path, *, method, seed, raw: bool, rate: float,
         if unfinished:
             _refuse_other_scene(info, store, c)
     if info is not None and (context is None or unfinished):
-        _refuse_other_flags(info, ("--method", method, info.method), ("--seed", seed, info.seed))
+        _refuse_other_flags(info, ("--method", method, info.method), ("--seed", seed, info.seed),
+                            *_skill_flags(info, skill))
         if not unfinished:
             _refuse_finished(info, store)
     if context is None:
@@ -224,7 +229,8 @@ def _run_to_ask(task: str, store: Path, *, method, seed, raw: bool, rate: float,
             return the_task, StoredRun.new(the_task, task_spec=task, method=method or _default_method(task),
                                            seed=seed or 0), None
         return scene_of(the_task, c), _new_in_context(the_task, task, store, method=method, seed=seed, context=c,
-                                                      overrides=None), info.id if info is not None else None
+                                                      overrides=None, skill=skill), \
+            info.id if info is not None else None
     session = _reopened(the_task, store, info)
     if session.done:
         _refuse_finished(info, store)
@@ -236,12 +242,13 @@ def _run_scene(the_task, info):
     return scene_of(the_task, recorded_context(info)) if info.config.get("contextual") else the_task
 
 
-def _new_in_context(the_task, task_spec: str, store: Path, *, method, seed, context, overrides):
-    """A new run in scene ``context`` that learns from the store's runs (the store opened read-only)."""
+def _new_in_context(the_task, task_spec: str, store: Path, *, method, seed, context, overrides, skill=None):
+    """A new run in scene ``context`` that learns from the store's runs (the store opened read-only);
+    ``skill``: the skill's settings (:func:`corl.cli.skill.skill_settings`)."""
     from corl.session import StoredRun
 
     new = dict(task_spec=task_spec, method=method or "CORL", seed=seed or 0, corl_overrides=overrides,
-               context=context)
+               context=context, skill=skill)
     if latest_run(store) is None:  # no store, or no run in it yet: nothing learned, the demonstration
         return StoredRun.new(the_task, learned_from=None, **new)
     with open_store(store, readonly=True) as db:
@@ -372,7 +379,7 @@ def _with_sensors(the_task, sensors: dict | None, seed: int):
 
 
 def _run_to_continue(task: str, store_path: Path, *, resume: bool, method, seed, rollout_every_step, quiet: bool,
-                     context=None, sensors: dict | None = None, end_at_error: bool = False):
+                     context=None, sensors: dict | None = None, end_at_error: bool = False, skill=None):
     """``(task in the run's scene, StoredRun, seen)`` of ``corl run``: the store's latest run replayed from a
     read-only open (``--resume``), or a new run in no store yet; nothing is written (see StoredRun.attach).
     ``seen``: for a new run in a context, ``(id of the latest run it learned up to,)``; else None.
@@ -396,7 +403,8 @@ def _run_to_continue(task: str, store_path: Path, *, resume: bool, method, seed,
             if latest is not None and latest.status is not RunStatus.FINISHED:  # its robot trial would be orphaned
                 _refuse_other_scene(latest, store_path, c, resume_hint=True)
             return scene_of(the_task, c), _new_in_context(the_task, task, store_path, method=method, seed=seed,
-                                                          context=c, overrides=overrides), (latest and latest.id,)
+                                                          context=c, overrides=overrides, skill=skill), \
+                (latest and latest.id,)
         method = method or _default_method(task)
         return the_task, StoredRun.new(the_task, task_spec=task, method=method, seed=seed,
                                        corl_overrides=overrides), None
@@ -404,7 +412,8 @@ def _run_to_continue(task: str, store_path: Path, *, resume: bool, method, seed,
     stored_sensors = info.config.get("noise") or {}  # a run without sensors reads exactly: 0 and 0
     _refuse_other_flags(info, ("--method", method, info.method), ("--seed", seed, info.seed),
                         ("--[no-]rollout-every-step", rollout_every_step, stored_every),
-                        *((f"--{k.replace('_', '-')}", v, stored_sensors.get(k, 0.0)) for k, v in sensors.items()))
+                        *((f"--{k.replace('_', '-')}", v, stored_sensors.get(k, 0.0)) for k, v in sensors.items()),
+                        *_skill_flags(info, skill))
     the_task = _with_sensors(load_task(task, seed=int(info.seed or 0)), stored_sensors, int(info.seed or 0))
     if context is not None:
         _refuse_other_context(info, store_path, parse_context(the_task, context))
@@ -439,6 +448,14 @@ def _refuse_other_flags(info, *flags: tuple[str, object, object]) -> None:
         if given is not None and given != stored:
             fail(f"{flag} {given} differs from the run being resumed (run {info.id} has {stored}); drop the "
                  "flag, or give another --store to start a new run")
+
+
+def _skill_flags(info, skill: dict | None):
+    """``(flag, given, stored)`` of each skill setting given, against the stored run's (for _refuse_other_flags)."""
+    from corl.contexts.skill import P_MIN
+
+    stored = {"p_min": P_MIN, **(info.config.get("skill") or {})}
+    return [(f"--{k.replace('_', '-')}", v, stored.get(k)) for k, v in (skill or {}).items()]
 
 
 def _refuse_finished(info, store: Path) -> None:

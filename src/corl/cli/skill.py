@@ -15,11 +15,18 @@ from typing import Optional
 
 import typer
 
-from corl.arguments import NEW_PATHS, latest_run, plain_numbers
+from corl.arguments import NEW_PATHS, latest_run, plain_number, plain_numbers
 from corl.cli.common import JSON_OUT, check_args, fail, open_store, print_json, write_json
 from corl.errors import CorlError, InputError
 
-__all__ = ["policy", "parse_context", "scene_of", "recorded_context", "context_text", "box_text"]
+__all__ = ["policy", "parse_context", "scene_of", "recorded_context", "context_text", "box_text", "P_MIN_OPTION",
+           "skill_settings"]
+
+#: ``--p-min``: the skill settings' flag, shared by ``corl run``, ``corl ask``, ``corl policy`` (and ``corl bench
+#: contexts``); read it with :func:`skill_settings`.
+P_MIN_OPTION = typer.Option(None, "--p-min", help="the skill's start is refined (not explored around) when it "
+                                                  "succeeds with at least this probability, in (0, 1); default "
+                                                  "0.95 (corl.contexts.P_MIN)")
 
 
 def box_text(task) -> str:
@@ -28,6 +35,28 @@ def box_text(task) -> str:
     labels = getattr(task, "context_labels", None) or [f"c{i + 1}" for i in range(b.dim)]
     coords = ", ".join(f"{label} in [{lo:g}, {hi:g}]" for label, lo, hi in zip(labels, b.lower, b.upper))
     return f"the context box of task '{task.name}': {coords}"
+
+
+def skill_settings(p_min: str | None, *, context: str | None = "given") -> dict:
+    """The skill's settings from the command line as :class:`corl.contexts.Skill` keywords
+    (``{"p_min": 0.9}``, only those given), checked before any work: a bad one exits 2 with one line.
+
+    ``context``: the command's ``--context`` (None: not given), for commands where a skill setting
+    needs one (``corl run``, ``corl ask``); leave it for those that always learn in scenes.
+    """
+    from corl.checks import number
+
+    given = {}
+    try:
+        if p_min is not None:
+            given["p_min"] = number("--p-min", plain_number("--p-min", p_min), low=0.0, high=1.0, low_open=True,
+                                    high_open=True)
+    except CorlError as exc:
+        fail(f"{exc}: a success probability, e.g. --p-min 0.9")
+    if given and context is None:
+        fail(f"--{next(iter(given)).replace('_', '-')} sets the skill a run in a context starts from: add "
+             "--context C, or drop it")
+    return given
 
 
 def context_text(c) -> str:
@@ -90,12 +119,15 @@ def policy(
                                           "e.g. 0.02,-0.01,0,0.1"),
     out: Optional[Path] = typer.Option(None, help="folder for policy.json (and policy.csv/.npz, the joint "
                                                   "trajectory); default: beside the store"),
-    rate: float = typer.Option(100.0, help="rate of the written trajectory (Hz)"),
+    rate: float = typer.Option(100.0, help="rate of the written trajectory (Hz), for a task with reference()"),
+    p_min: Optional[str] = P_MIN_OPTION,
     json_out: bool = JSON_OUT,
 ) -> None:
-    """The learned skill in context C, with no trial: theta, p_success, R, the motion (policy.json, trajectory)."""
+    """The learned skill in context C, with no trial: theta, p_success, R, the motion (policy.json, and the joint
+    trajectory policy.csv/.npz for a task with reference())."""
     folder = out if out is not None else store.parent
     check_args(task=("TASK", task), path=("--store", store), rate=("--rate", rate), folder=("--out", folder))
+    skill_kw = skill_settings(p_min)
     if store.is_dir():
         fail(f"--store {store} is a folder; give the store file, e.g. {store / 'run.corl'}")
     if not store.is_file():
@@ -107,7 +139,7 @@ def policy(
         if info is None:
             fail(f"{store} holds no run, so no skill; learn a context first: corl run {task} --context C "
                  f"--store {store}")
-        the_task, skill, answer, trajectory = _deployed(task, store, context, rate, info)
+        the_task, skill, answer, trajectory = _deployed(task, store, context, rate, info, skill_kw)
     except CorlError as exc:
         fail(str(exc))
     payload = _payload(the_task, store, skill, answer, rate)
@@ -121,7 +153,7 @@ def policy(
     typer.echo(_table(payload))
 
 
-def _deployed(task: str, store: Path, text: str, rate: float, info):
+def _deployed(task: str, store: Path, text: str, rate: float, info, skill_kw: dict):
     """``(task, skill, policy, trajectory or None)``; every refusal an error before anything is written."""
     import numpy as np
 
@@ -132,7 +164,7 @@ def _deployed(task: str, store: Path, text: str, rate: float, info):
     the_task = load_task(task, seed=int(info.seed or 0))
     c = parse_context(the_task, text)
     with open_store(store, readonly=True) as db:
-        skill = Skill.load(db, the_task)
+        skill = Skill.load(db, the_task, **skill_kw)
     answer = skill.policy(c)
     if not answer.feasible:
         raise InputError(f"the skill's motion for --context {context_text(c)} does not satisfy the task's "

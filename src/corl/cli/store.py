@@ -17,7 +17,13 @@ __all__ = ["status", "runs", "export", "report"]
 def _run_info(r) -> dict:
     """A :class:`corl.store.RunInfo` as JSON (``corl runs --json``, ``corl status --json``)."""
     return {"id": r.id, "task": r.task, "method": r.method, "seed": r.seed, "status": r.status.value,
-            "created": r.created, "trials": r.n_trials, "told": r.n_told}
+            "created": r.created, "trials": r.n_trials, "told": r.n_told, "context": r.config.get("context")}
+
+
+def _scene(r) -> str:
+    """A run's scene as ``corl run --context`` takes it (``-0.5,0.25``), ``-`` for a run without contexts."""
+    c = r.config.get("context")
+    return "-" if c is None else ",".join(f"{float(v):.6g}" for v in c)
 
 
 def status(store: Path = typer.Option(..., help="run store"),
@@ -45,7 +51,8 @@ def status(store: Path = typer.Option(..., help="run store"),
         return print_json({**_run_info(info), "trials": len(trials), "told": len(told),
                            "pending": len(trials) - len(told), "failures": len(told) - len(ok),
                            "best": learners, "best_observed": seen, "ended": ended})
-    typer.echo(f"run {info.id}: task {info.task}, method {info.method}, seed {info.seed}, {info.status.value}")
+    scene = "" if info.config.get("context") is None else f", context {_scene(info)}"
+    typer.echo(f"run {info.id}: task {info.task}, method {info.method}, seed {info.seed}{scene}, {info.status.value}")
     typer.echo(f"trials {len(trials)} (told {len(told)}, pending {len(trials) - len(told)}), "
                f"failures {len(told) - len(ok)}")
     if learners is not None:
@@ -70,24 +77,31 @@ def runs(store: Path = typer.Option(..., help="run store"), json_out: bool = JSO
         fail(str(exc))
     if json_out:
         return print_json({"runs": [_run_info(r) for r in infos]})
-    typer.echo(f"{'id':>4} {'task':<12} {'method':<20} {'seed':>6} {'trials':>7} {'status':<9} created")
+    width = max([12] + [len(r.task) for r in infos])
+    typer.echo(f"{'id':>4} {'task':<{width}} {'method':<20} {'seed':>6} {'trials':>7} {'status':<9} {'created':<25} "
+               "context")
     for r in infos:
-        typer.echo(f"{r.id:>4} {r.task:<12} {r.method:<20} {r.seed!s:>6} {r.n_trials:>7} {r.status.value:<9} {r.created}")
+        typer.echo(f"{r.id:>4} {r.task:<{width}} {r.method:<20} {r.seed!s:>6} {r.n_trials:>7} {r.status.value:<9} "
+                   f"{r.created:<25} {_scene(r)}")
 
 
 def export(store: Path = typer.Option(..., help="run store"),
            out: Path = typer.Option(..., help="file to write: .csv or .parquet (w vectors go beside it as .npz)"),
-           run_id: Optional[int] = typer.Option(None, "--run", help="run id (default: latest)")) -> None:
-    """Export a run's trials for analysis."""
+           run_id: Optional[int] = typer.Option(None, "--run", help="run id (default: latest)"),
+           all_runs: bool = typer.Option(False, "--all", help="every run of the store in one table, a 'run' column "
+                                                             "first (with a run's scene in context_0.. columns)")) -> None:
+    """Export a run's trials (or every run's, --all) for analysis; a run in a context gets its scene's columns."""
     from corl.errors import CorlError
 
     check_args(path=("--store", store), export=("--out", out))
+    if all_runs and run_id is not None:
+        fail(f"--all exports every run; drop --run {run_id} (or --all to export run {run_id} only)")
     try:
         with open_store(store, readonly=True) as db:
             info = db.run(run_id) if run_id is not None else db.latest_run()
             if info is None:
                 fail(f"{store} holds no run yet", code=1)
-            table, arrays = db.export(info.id, out)
+            table, arrays = db.export([r.id for r in db.runs()] if all_runs else info.id, out)
     except CorlError as exc:
         fail(str(exc))
     typer.echo(f"wrote {table} and {arrays}")

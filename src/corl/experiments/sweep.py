@@ -42,17 +42,24 @@ _BUILT: dict[tuple, object] = {}  # one task per worker process and spec (a MuJo
 
 @dataclass(frozen=True)
 class TaskSpec:
-    """A picklable task builder for workers: ``corl run``'s task argument and seed (built once per process)."""
+    """A picklable task builder for workers: ``corl run``'s task argument and seed (built once per process);
+    ``context`` (k floats): the task in that scene (``with_context(c)``, checked), else its own."""
 
     spec: str
     seed: int = 0
+    context: tuple | None = None
 
     def __call__(self):
-        key = (self.spec, self.seed)
+        key = (self.spec, self.seed, self.context)
         if key not in _BUILT:
             from corl.tasks.registry import load_task
 
-            _BUILT[key] = load_task(self.spec, seed=self.seed)
+            task = load_task(self.spec, seed=self.seed)
+            if self.context is not None:
+                from corl.contexts.skill import scene_of
+
+                task = scene_of(task, np.array(self.context, dtype=float))
+            _BUILT[key] = task
         return _BUILT[key]
 
 
@@ -217,12 +224,13 @@ def sweep_task(make_task: Callable[[], object], grid, *, anchor=None, theta_anch
 _HINT = "free disk space or choose another --out"  # what to do when a file of the sweep cannot be written
 
 
-def write_sweep(sweep: Sweep, out: str | Path, *, labels=None, title: str = "") -> dict[str, str]:
+def write_sweep(sweep: Sweep, out: str | Path, *, labels=None, title: str = "", meta: dict | None = None) -> dict[str, str]:
     """``sweep.csv`` (one row per grid point), ``sweep.json`` and, for m <= 2, ``sweep.png`` (the map).
 
     Each file is written whole or not at all (:func:`corl.store.files.write_atomically`); a folder
     or file that cannot be written (a full disk, a read-only place) is an :class:`InputError`.
     Returns {kind: path}; the map of a theta with more than 2 coordinates is skipped (``png_skipped``).
+    ``meta`` (e.g. ``{"context": [...]}``) goes into ``sweep.json`` first.
     """
     out = Path(out)
     try:
@@ -232,7 +240,7 @@ def write_sweep(sweep: Sweep, out: str | Path, *, labels=None, title: str = "") 
     m = len(sweep.axes)
     labels = tuple(labels) if labels is not None and len(labels) == m else tuple(f"theta{k + 1}" for k in range(m))
     files = {"csv": str(write_atomically(out / "sweep.csv", lambda tmp: _write_csv(tmp, sweep), hint=_HINT))}
-    payload = {**_summary(sweep, labels), "csv": files["csv"]}
+    payload = {**(meta or {}), **_summary(sweep, labels), "csv": files["csv"]}
     files["json"] = str(write_text_atomically(out / "sweep.json", json.dumps(payload, indent=2) + "\n", hint=_HINT))
     if m > 2:
         files["png_skipped"] = f"no map for a theta with {m} coordinates (the CSV has every point)"
@@ -263,10 +271,14 @@ def _summary(sweep: Sweep, labels: tuple[str, ...]) -> dict:
 
 
 def sweep_command(task: str, grid: str, out, *, seed: int = 0, jobs: int = 1, backend: str = "loky",
-                  address: str | None = None, tracker=None) -> dict:
-    """``corl sweep``: build the task, sweep the grid from the demonstration, write the files; the JSON payload."""
-    spec = TaskSpec(task, seed)
+                  address: str | None = None, tracker=None, context=None) -> dict:
+    """``corl sweep``: build the task, sweep the grid from the demonstration, write the files; the JSON payload.
+    ``context`` (k,): sweep the task in that scene, from the scene's own demonstration."""
+    spec = TaskSpec(task, seed, None if context is None else tuple(float(v) for v in context))
     the_task = spec()
+    meta = {} if context is None else {"context": list(spec.context)}
+    if context is not None:
+        _check_scene_demonstration(the_task, spec.context)
     sizes = parse_grid(grid, the_task.theta_bounds.dim)
     def progress(done, total, ok):
         if tracker is not None:
@@ -275,10 +287,27 @@ def sweep_command(task: str, grid: str, out, *, seed: int = 0, jobs: int = 1, ba
     if tracker is not None:
         tracker.add_stage("grid", total=math.prod(sizes))
     result = sweep_task(spec, sizes, jobs=jobs, backend=backend, address=address, progress=progress)
-    files = write_sweep(result, out, labels=getattr(the_task, "theta_labels", None), title=the_task.name)
-    return {"task": the_task.name, "grid": list(sizes), "points": int(result.success.size),
+    title = the_task.name + ("" if context is None else f" in context {', '.join(f'{v:g}' for v in spec.context)}")
+    files = write_sweep(result, out, labels=getattr(the_task, "theta_labels", None), title=title, meta=meta)
+    return {"task": the_task.name, **meta, "grid": list(sizes), "points": int(result.success.size),
             "successes": int(result.success.sum()), "unrealised": int((~result.realised).sum()),
             "best": json.loads(Path(files["json"]).read_text())["best"], "files": files}
+
+
+def _check_scene_demonstration(scene, context: tuple) -> None:
+    """A sweep in a scene starts from the scene's demonstration: one that raises is an :class:`InputError`
+    naming the scene (not a traceback from a worker)."""
+    from corl.errors import CorlError
+
+    where = ",".join(f"{v:g}" for v in context)
+    try:
+        scene.demonstration()
+    except CorlError as exc:
+        raise InputError(f"task '{scene.name}' in context {where}: {exc}") from None
+    except Exception as exc:  # the task's own code
+        raise InputError(f"task '{scene.name}' in context {where}: demonstration() raised {type(exc).__name__}: "
+                         f"{exc}; a sweep in a scene starts from that scene's demonstration: fix it, or sweep "
+                         "another --context") from None
 
 
 def write_raw_parameters(proposal, folder) -> dict:

@@ -38,12 +38,31 @@ def check_export_path(path) -> Path:
     return path
 
 
-def write_export(records: list[TrialRecord], run_id: int, path: Path) -> tuple[Path, Path]:
-    """Write the table to ``path`` and the w vectors to ``<name>.w.npz`` (see ``RunStore.export``)."""
+def write_export(runs: list, path: Path, *, several: bool = False) -> tuple[Path, Path]:
+    """Write the trials of ``runs`` (``[(RunInfo, [TrialRecord])]``) to ``path`` and their w vectors to
+    ``<name>.w.npz`` (see ``RunStore.export``).
+
+    ``several``: a ``run`` column first (and a ``run`` array in the npz), for the export of many runs.
+    A run in a context (``config["context"]``, a task with contexts) gives every row its scene as
+    ``context_0..context_{k-1}`` after ``round``; a run without one leaves them empty.
+    """
+    records = [r for _, trials in runs for r in trials]
     w_shapes = {r.proposal.w.shape for r in records}
     if len(w_shapes) > 1:
-        raise StoreError(f"run {run_id} holds w of several shapes {sorted(w_shapes)}, which cannot be stacked")
+        which = f"run {runs[0][0].id}" if not several else f"runs {', '.join(str(i.id) for i, _ in runs)}"
+        raise StoreError(f"{which} hold w of several shapes {sorted(w_shapes)}, which cannot be stacked"
+                         + ("; export one run at a time (--run ID)" if several else ""))
+    scenes = [(info.config or {}).get("context") for info, trials in runs for _ in trials]
+    k = max((len(c) for c in scenes if c is not None), default=0)
     columns = _table_columns(records)
+    lead: dict[str, list] = {}
+    if several:
+        lead["run"] = [info.id for info, trials in runs for _ in trials]
+    for name in ("index", "step", "round"):
+        lead[name] = columns.pop(name)
+    for j in range(k):
+        lead[f"context_{j}"] = [None if c is None or j >= len(c) else float(c[j]) for c in scenes]
+    columns = {**lead, **columns}
     if path.suffix == ".csv":
         _write_atomically(path, lambda f: _write_csv(f, columns), text=True)
     else:
@@ -52,9 +71,11 @@ def write_export(records: list[TrialRecord], run_id: int, path: Path) -> tuple[P
 
         _write_atomically(path, lambda f: pq.write_table(pa.table(columns), f))
     npz = path.with_suffix(".w.npz")
-    index = np.array([r.index for r in records], dtype=np.int64)
-    w = np.stack([r.proposal.w for r in records]) if records else np.empty((0, 0))
-    _write_atomically(npz, lambda f: np.savez(f, index=index, w=w))
+    arrays = {"index": np.array([r.index for r in records], dtype=np.int64),
+              "w": np.stack([r.proposal.w for r in records]) if records else np.empty((0, 0))}
+    if several:
+        arrays["run"] = np.array(lead["run"], dtype=np.int64)
+    _write_atomically(npz, lambda f: np.savez(f, **arrays))
     return path, npz
 
 

@@ -433,21 +433,18 @@ class RunStore:
         return records[0] if records else None
 
     # -- export --------------------------------------------------------------------------------
-    def export(self, run_id: int, path: str | os.PathLike) -> tuple[Path, Path]:
-        """Write a run's trials as a table (``.csv``, or ``.parquet`` when pyarrow is installed).
+    def export(self, run_id: int | list[int], path: str | os.PathLike) -> tuple[Path, Path]:
+        """Write a run's trials (``run_id`` a list: those runs' trials, a ``run`` column first) as a table
+        (``.csv``, or ``.parquet`` when pyarrow is installed), the w vectors beside it in ``<name>.w.npz``.
 
-        One row per trial: index, step, round, theta_0..theta_{m-1}, success (1/0), return,
-        proposed_at, told_at; a pending trial has empty success, return and told_at. Floats are
-        written with enough digits to read back exactly. The w vectors go beside the table, to
-        ``<name>.w.npz`` with arrays ``index`` (d,) and ``w`` (d, n); load it with
-        ``np.load(..., allow_pickle=False)``.
-
-        Returns
-        -------
-        The paths of the table and of the ``.npz`` file.
+        One row per trial: [run,] index, step, round, [context_0..context_{k-1}: the run's scene,] theta_0..,
+        success (1/0), return, proposed_at, told_at (:func:`corl.store.export.write_export`). Returns the
+        paths of the table and of the ``.npz`` file.
         """
         path = check_export_path(path)
-        return write_export(self.trials(run_id), run_id, path)
+        several = not isinstance(run_id, int)
+        ids = list(run_id) if several else [run_id]
+        return write_export([(self.run(i), self.trials(i)) for i in ids], path, several=several)
 
     # -- life cycle ----------------------------------------------------------------------------
     def close(self) -> None:
