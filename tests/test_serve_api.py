@@ -265,12 +265,12 @@ def test_a_refused_start_leaves_the_store_byte_for_byte(tmp_path, monkeypatch):
     for args in (["--task", "synthetic-context", "--context", "0.1"], ["--task", "synthetic"]):
         res = runner.invoke(app, ["ask", "--store", f"{args[1]}.corl", "--raw", *args])
         assert res.exit_code == 0, res.output
-    refusals = [("synthetic-context.corl", "synthetic-context", "learns in a context"),
-                ("synthetic.corl", "door", "is for task 'synthetic'")]
-    for store, task, message in refusals:
+    refusals = [("synthetic-context.corl", "synthetic-context", 5, "--seed 5 differs from run 1"),  # a run in a context
+                ("synthetic.corl", "door", None, "is for task 'synthetic'")]
+    for store, task, seed, message in refusals:
         before = _bytes_and_mtime(tmp_path / store)
         with pytest.raises(InputError, match=message):
-            with background(tmp_path / store, task):
+            with background(tmp_path / store, task, seed=seed):
                 pass
         assert _bytes_and_mtime(tmp_path / store) == before, store
 

@@ -53,7 +53,8 @@ class Trial:
     ``index`` its position in the run; ``theta`` (m,) its interaction parameters; ``step`` and
     ``round`` where in Algorithm 1 it comes from; ``t`` (K,) and ``q`` (K, Q) the joint trajectory
     to execute (``joint_names`` its columns) for a task with ``reference()``; ``w`` (n,) the raw
-    parameters, only when asked for with ``raw=True`` (never send those to a robot).
+    parameters, only when asked for with ``raw=True`` (never send those to a robot); ``run`` the run
+    it belongs to and ``context`` (k,) its scene, for a task with contexts (None otherwise).
     """
 
     index: int
@@ -65,6 +66,7 @@ class Trial:
     joint_names: tuple[str, ...] = ()
     w: np.ndarray | None = None
     run: int | None = None
+    context: np.ndarray | None = None
     raw: dict = field(default_factory=dict, repr=False)  # the answer as it came
 
 
@@ -120,16 +122,32 @@ class Client:
         self._last: dict | None = None  # the latest status the server sent (a tell's answer carries it)
 
     # -- the learner's interface ---------------------------------------------------------------
-    def ask(self) -> Trial:
-        """The next trial (the pending one again, when it was not told yet)."""
-        a = self._request("POST", "/ask", {"raw": True} if self.raw else {})
+    def ask(self, context=None) -> Trial:
+        """The next trial (the pending one again, when it was not told yet).
+
+        ``context`` (k,): the scene the robot is in, for a task with contexts; the server then learns
+        there (a new run that starts from every scene the store learned, or the scene's unfinished
+        run). Refused while a trial of another scene is pending. None: the run the server serves now.
+        """
+        body = {"raw": True} if self.raw else {}
+        if context is not None:
+            try:
+                values = np.asarray(context, dtype=float).reshape(-1)
+            except (TypeError, ValueError):
+                raise InputError(f"ask(context=...) must be numbers, one per context coordinate, got {context!r:.60}") \
+                    from None
+            if not np.all(np.isfinite(values)):
+                raise InputError(f"ask(context=...) must be finite numbers, got {values.tolist()}")
+            body["context"] = values.tolist()
+        a = self._request("POST", "/ask", body)
         ref = a.get("reference") or {}
         self._trial = Trial(index=int(a["trial"]), theta=np.asarray(a["theta"], dtype=float), step=a["step"],
                             round=int(a["round"]), run=a.get("run"),
                             t=None if "t" not in ref else np.asarray(ref["t"], dtype=float),
                             q=None if "q" not in ref else np.asarray(ref["q"], dtype=float),
                             joint_names=tuple(ref.get("joint_names", ())),
-                            w=None if "w" not in a else np.asarray(a["w"], dtype=float), raw=a)
+                            w=None if "w" not in a else np.asarray(a["w"], dtype=float),
+                            context=None if a.get("context") is None else np.asarray(a["context"], dtype=float), raw=a)
         self._last = None
         return self._trial
 
@@ -145,11 +163,14 @@ class Client:
         if info is not None and not isinstance(info, dict):
             raise InputError(f"tell(info=...) must be a dict of JSON values, got {type(info).__name__}")
         extra.update(info or {})
+        run = None
         if trial is None:
             if self._trial is None:
                 raise StateError("tell() without ask(): ask for a trial first, run it, then tell its outcome")
-            trial = self._trial.index
+            trial, run = self._trial.index, self._trial.run
         body = {"trial": integer("tell(trial)", trial), "success": success, "return": value, "info": extra}
+        if run is not None:  # the run the trial came from: a server serving many scenes tells it there
+            body["run"] = run
         answer = self._request("POST", "/tell", body)
         self._last = answer
         return answer

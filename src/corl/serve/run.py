@@ -35,8 +35,8 @@ __all__ = ["ServedRun", "Conflict", "Broken", "TaskCodeError", "CODE_KEYS"]
 
 # Body keys that would name code or a run: the task is given on the server's command line only.
 CODE_KEYS = ("task", "task_spec", "spec", "module", "factory", "method", "seed", "store", "path")
-_ASK_KEYS = ("raw",)
-_TELL_KEYS = ("trial", "success", "return", "info")
+_ASK_KEYS = ("raw", "context")
+_TELL_KEYS = ("trial", "success", "return", "info", "run")
 
 
 class Conflict(StateError):
@@ -66,6 +66,10 @@ class ServedRun:
     store and runs every call that touches the learner or the store; :meth:`ask`, :meth:`tell` and
     :meth:`snapshot` must run there (``executor.submit``), which serializes them. :attr:`status` and
     :meth:`trials` read copies and may be read from any thread.
+
+    For a task with contexts, an ask may name its scene (``{"context": [...]}``): the run of that scene
+    is served from then on, found or started as :mod:`corl.serve.scenes` says; one trial is pending at
+    a time, across scenes.
 
     Parameters
     ----------
@@ -101,21 +105,20 @@ class ServedRun:
         self.version = 0  # grows with every change a client can see
         self.broken: str | None = None
         self._asked: Proposal | None = None  # asked of the learner, not handed out yet
+        self._method, self._parked = method, {}  # run id -> the state of a run the robot left (another scene)
         info = latest_run(self.store_path)  # read-only: a refused start leaves the store's bytes as they were
         if info is not None:
             for flag, given, stored in (("--method", method, info.method), ("--seed", seed, info.seed)):
                 if given is not None and given != stored:
                     raise InputError(f"{flag} {given} differs from run {info.id} in {self.store_path} ({stored}); "
                                      "drop the flag to serve that run, or give another --store")
-            if info.config.get("contextual"):
-                raise InputError(f"run {info.id} in {self.store_path} learns in a context; corl serve serves "
-                                 "runs without one: use corl ask/tell for it, or another --store")
             self.task = load_task(task_spec, seed=int(info.seed or 0))
             with RunStore(self.store_path, readonly=True) as db:
                 session = StoredRun.open(db, self.task, info.id)
         else:
             seed = 0 if seed is None else seed
             self.task = load_task(task_spec, seed=seed)
+            self.seed = seed
             method = method or ("CORL+PIBU" if task_spec in BUILTIN_TASKS else DEFAULT_METHOD)
             session = StoredRun.new(self.task, task_spec=task_spec, method=method, seed=seed)
         self.db = RunStore(self.store_path)  # the writer lock, held until close()
@@ -124,21 +127,56 @@ class ServedRun:
             if (latest and latest.id) != (info and info.id):
                 raise StoreError(f"another process started a run in {self.store_path} meanwhile; nothing was written: "
                                  "start corl serve again")
-            self.session = session.attach(self.db)  # a run changed since it was read: StoreError
-            if info is not None and info.status is not RunStatus.FINISHED and self.session.done:
+            session = session.attach(self.db)  # a run changed since it was read: StoreError
+            if info is not None and info.status is not RunStatus.FINISHED and session.done:
                 self.db.set_status(info.id, RunStatus.FINISHED)
-            self.info = self.db.run(self.session.run_id)
-            pending = self.db.pending(self.session.run_id)
-            self.pending: Proposal | None = None if pending is None else pending.proposal
-            self.records = self.db.trials(self.session.run_id)  # every trial, oldest first; outcome None while pending
-            self._J = {i: _finite(J) for i, J in getattr(self.session.learner, "J_history", ()) or ()}
-            self._best_told = None
-            for r in self.records:
-                self._note_best(r)
+            self._adopt(session)
         except BaseException:
             self.db.close()
             raise
         self.status = self._status()
+
+    def _adopt(self, session) -> None:
+        """Serve ``session`` (attached to the store) from now on: its trials, pending trial and scene."""
+        from corl.serve.scenes import run_context
+
+        self.session = session
+        self.info = self.db.run(session.run_id)
+        self.seed = int(self.info.seed or 0)
+        c = run_context(self.info)
+        own = getattr(self.task, "context", None)
+        self.own_scene = c is None or own is None or np.array_equal(c, np.asarray(own, dtype=float))
+        self.scene = self.task if self.own_scene else _scene(self.task, c)  # what reference() and the robot see
+        pending = self.db.pending(session.run_id)
+        self.pending: Proposal | None = None if pending is None else pending.proposal
+        self.records = self.db.trials(session.run_id)  # every trial, oldest first; outcome None while pending
+        self._J = {i: _finite(J) for i, J in getattr(session.learner, "J_history", ()) or ()}
+        self._best_told = None
+        for r in self.records:
+            self._note_best(r)
+
+    def _to_scene(self, c) -> None:
+        """Serve the run of scene ``c`` (:mod:`corl.serve.scenes`); refused while a trial is pending elsewhere."""
+        from corl.serve.scenes import run_for_scene, same_scene
+
+        if same_scene(self.info, c) and not self.session.done:
+            return
+        where = ", ".join(f"{v:g}" for v in c)
+        if self.pending is not None:
+            raise Conflict(f"trial {self.pending.index} of run {self.session.run_id} ({_where(self.info)}) is pending "
+                           f"on the robot: tell its outcome (POST /tell) before asking in context [{where}]; one "
+                           "trial is out at a time, across scenes")
+        if self._method not in (None, "CORL"):
+            raise InputError(f"this server was started with --method {self._method}; a run in a context learns "
+                             "with CORL: restart corl serve without --method to learn in scenes")
+        self._parked[self.session.run_id] = (self.session, self._J)
+        self._asked = None
+        session, created = run_for_scene(self.db, self.task, self.task_spec, c, method="CORL", seed=self.seed)
+        parked = self._parked.pop(session.run_id, None)
+        self._adopt(session if parked is None or created else parked[0])
+        if parked is not None and not created:
+            self._J = parked[1]
+        self._changed()
 
     def close(self) -> None:
         """Release the store (and its writer lock), after the call in progress."""
@@ -153,6 +191,10 @@ class ServedRun:
             raise InputError(f"'raw' must be true or false, got {raw!r}")
         self._usable()
         t0 = time.perf_counter()
+        if "context" in body:
+            from corl.serve.scenes import requested_context
+
+            self._to_scene(requested_context(self.task, body["context"]))
         if not raw and getattr(self.task, "reference", None) is None:  # corl.problem.HasReference
             raise InputError(f"task '{self.task.name}' has no reference(w, rate), so corl cannot turn w into a "
                              "joint trajectory: ask with {\"raw\": true} (Client(url, raw=True)) for the raw "
@@ -176,6 +218,8 @@ class ServedRun:
         t2 = time.perf_counter()
         answer = {"trial": proposal.index, "run": self.session.run_id, "step": proposal.step,
                   "round": proposal.round, "theta": proposal.theta.tolist()}
+        if self.info.config.get("context") is not None:  # the scene this trial is for
+            answer["context"] = list(self.info.config["context"])
         if raw:
             answer["w"] = proposal.w.tolist()
             answer["raw"] = "the raw parameters w, NOT a joint trajectory: never send them to a robot"
@@ -187,7 +231,7 @@ class ServedRun:
         from corl.session import trajectory_of
 
         try:
-            t, q = trajectory_of(self.task, proposal.w, self.rate)
+            t, q = trajectory_of(self.scene, proposal.w, self.rate)
         except (Exception, SystemExit) as exc:  # the task's reference(), or its contract (NaN, shapes)
             raise TaskCodeError(
                 f"the task's reference(w, rate) failed on trial {proposal.index} ({type(exc).__name__}: {exc}); the "
@@ -217,7 +261,12 @@ class ServedRun:
         if not success and value is not None:
             raise InputError("a failed trial is told without a return: send \"return\": null (or success true)")
         outcome = Outcome(success, value, info)  # a NaN, a missing return on success: InputError
+        run = body.get("run", self.session.run_id)
+        if isinstance(run, bool) or not isinstance(run, int):
+            raise InputError(f"'run' must be the run id the trial came with (an integer), got {run!r}")
         self._usable()
+        if run != self.session.run_id:  # a trial of a run the robot left: only a repeat of a told one is answered
+            return self._told_elsewhere(run, index, outcome), Timing()
         t0 = time.perf_counter()
         if index < len(self.records) and self.records[index].outcome is not None:
             return self._repeated(index, outcome), Timing()
@@ -260,6 +309,25 @@ class ServedRun:
         if o is not None and o.success and (self._best_told is None or o.return_ > self._best_told["return"]):
             self._best_told = {"trial": record.index, "return": o.return_, "theta": record.proposal.theta.tolist()}
 
+    def _told_elsewhere(self, run: int, index: int, outcome: Outcome) -> dict:
+        """A tell of trial ``index`` of ``run``, not the run served now: answered again when that trial was told
+        with this outcome (a repeat after a lost answer), else a :class:`Conflict`."""
+        from corl.store import StoreError
+
+        try:
+            records = self.db.trials(run)
+        except StoreError:
+            records = []
+        told = records[index].outcome if index < len(records) else None
+        if told is None or told.success != outcome.success or told.return_ != outcome.return_:
+            raise Conflict(f"trial {index} of run {run} is not pending, so it cannot be told: the server serves run "
+                           f"{self.session.run_id} ({_where(self.info)}) now" + (
+                               "" if self.pending is None else f", whose pending trial is {self.pending.index}"))
+        status = self.status
+        return {"trial": index, "run": run, "success": told.success, "return": told.return_, "done": status["done"],
+                "stop_reason": status["stop_reason"], "trials": status["trials"], "failures": status["failures"],
+                "repeated": True}
+
     def _repeated(self, index: int, outcome: Outcome) -> dict:
         stored = self.records[index].outcome
         same = (stored.success == outcome.success and stored.return_ == outcome.return_
@@ -295,7 +363,9 @@ class ServedRun:
     def last_told(self) -> tuple | None:
         """``(index, w of the demonstration, w of the last told trial)``, or None before the first tell."""
         told = [r for r in self.records if r.outcome is not None]
-        return None if not told else (told[-1].index, self.records[0].proposal.w, told[-1].proposal.w)
+        if not told or not self.own_scene:  # the video renders the task's own scene only
+            return None
+        return told[-1].index, self.records[0].proposal.w, told[-1].proposal.w
 
     def trials(self, since: int = 0) -> list[dict]:
         """The trials from index ``since`` on, oldest first (a pending one has ``success`` null)."""
@@ -312,6 +382,7 @@ class ServedRun:
     def _status(self) -> dict:
         """What GET /status answers: counts, the pending trial, the learner's best and the best observed reading,
         done and why."""
+        from corl.serve.scenes import runs_summary
         from corl.session import best_record
 
         s = self.session
@@ -329,7 +400,20 @@ class ServedRun:
             "best_observed": self._best_told,  # the highest reading told: under noise the luckiest, not deployed
             "done": bool(s.done), "stop_reason": None if reason is None else getattr(reason, "value", str(reason)),
             "theta_dim": self.task.theta_bounds.dim, "version": self.version, "broken": self.broken,
+            "context": self.info.config.get("context"),  # the scene of the run served now (None: no contexts)
+            "runs": runs_summary(self.db),  # every run of the store, each with its scene
         }
+
+
+def _scene(task, c):
+    from corl.contexts.skill import scene_of
+
+    return scene_of(task, c)
+
+
+def _where(info) -> str:
+    c = info.config.get("context")
+    return "no context" if c is None else "context [" + ", ".join(f"{float(v):g}" for v in c) + "]"
 
 
 def _check_keys(body, allowed: tuple[str, ...], what: str) -> dict:

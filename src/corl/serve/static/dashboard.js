@@ -10,8 +10,20 @@ const rows = new Map();  // trial index -> <tr>
 
 function setText(id, text) { $(id).textContent = text; }
 
+const scene = (c) => (c === null || c === undefined) ? "" : `context [${c.map((v) => +v.toFixed(4)).join(", ")}]`;
+let shownRun = null;  // the run whose trials the table shows: a robot in another scene switches it
+
 function showStatus(s) {
-  setText("title", `\u00b7 ${s.task} \u00b7 ${s.method} \u00b7 seed ${s.seed} \u00b7 run ${s.run} \u00b7 ${s.store}`);
+  if (s.run !== shownRun) {  // another run (another scene): its own trials, numbered from 0
+    shownRun = s.run;
+    rows.clear();
+    $("trial-rows").replaceChildren();
+  }
+  const where = s.context === null || s.context === undefined ? "" : ` \u00b7 ${scene(s.context)}`;
+  setText("title", `\u00b7 ${s.task} \u00b7 ${s.method} \u00b7 seed ${s.seed} \u00b7 run ${s.run}${where} \u00b7 ${s.store}`);
+  const scenes = (s.runs || []).filter((r) => r.context !== null);
+  setText("scenes", scenes.length ? "runs by scene: " + scenes.map((r) =>
+    `run ${r.run} ${scene(r.context)} (${r.told} told, ${r.status})`).join("; ") : "");
   setText("trials", s.trials);
   setText("failures", s.failures);
   setText("pending", s.pending === null ? "none" : s.pending);
@@ -58,7 +70,7 @@ async function loadTrials() {
     const pending = [...rows.values()].filter((tr) => tr.dataset.outcome === "pending").map((tr) => +tr.dataset.trial);
     if (pending.length) since = Math.min(since, ...pending);
     const answer = await (await fetch(`/trials?since=${since}`, {cache: "no-store"})).json();
-    answer.trials.forEach(showRow);
+    if (answer.run === shownRun) answer.trials.forEach(showRow);  // not a run the robot has just left
     document.body.dataset.rows = rows.size;
   } finally {
     loading = false;
