@@ -158,3 +158,17 @@ def test_the_dashboard_shows_the_scene_of_each_run(store, tmp_path):
             moved = ("document.getElementById('title').textContent.includes('run 3 \\u00b7 context [-0.3]') && "
                      "document.querySelectorAll('#trial-rows tr').length == 1")
             assert b.wait_for(moved, timeout=10), b.evaluate("document.body.innerText")[:500]
+
+
+def test_after_a_restart_a_left_scene_goes_on_from_the_store(store):
+    base = load_task(TASK)
+    with background(store, TASK) as url:
+        c = Client(url, raw=True)
+        for scene in ([0.3], [-0.3]):  # one trial in each: run 2 in 0.3 is left unfinished
+            trial = c.ask(context=scene)
+            c.tell(base.with_context(np.array(scene)).rollout(trial.w))
+    with background(store, TASK) as url:  # restarted: it serves the latest run, 3
+        c = Client(url, raw=True)
+        assert c.status()["run"] == 3
+        back = c.ask(context=[0.3])
+    assert (back.run, back.index, back.context.tolist()) == (2, 1, [0.3])
