@@ -3,7 +3,8 @@
 Glossary
 --------
 q          (Q,) task configuration (see :mod:`corl.mujoco.robot`)
-frame      a site, the mean of several sites (e.g. two fingertip pads), or a body's origin
+frame      a site, the mean of several sites (e.g. two fingertip pads), a body's origin, or the
+           mean of points fixed on bodies (:meth:`Kinematics.points`, e.g. where a recording touched)
 p(q)       (3,) world position of a frame; ``Jp`` (3, Q) its Jacobian dp/dq
 R(q)       (3, 3) world orientation of a frame (columns: its axes); ``Jw`` (3, Q) the angular
            velocity Jacobian: ``omega = Jw dq/dt``, ``dR/dt = [omega]x R``
@@ -236,15 +237,19 @@ class FrameJacobians:
 
 @dataclass(frozen=True)
 class Frame:
-    """A point (and orientation) on the robot: a site, the mean of sites, or a body's origin.
+    """A point (and orientation) on the robot: a site, the mean of sites, a body's origin, or the mean
+    of points fixed on bodies.
 
-    Build it with :meth:`Kinematics.site` or :meth:`Kinematics.body`. ``ids`` (k,) are MuJoCo ids;
-    the orientation of a multi-site frame is that of its first site.
+    Build it with :meth:`Kinematics.site`, :meth:`Kinematics.body` or :meth:`Kinematics.points`.
+    ``ids`` (k,) are MuJoCo ids; the orientation of a multi-site frame is that of its first site (of a
+    ``"point"`` frame, its first body's). ``offsets`` (k, 3): each point in its body's frame
+    (``"point"`` frames only).
     """
 
     kind: str
     ids: tuple
     name: str
+    offsets: tuple = ()
 
 
 class Kinematics:
@@ -281,6 +286,16 @@ class Kinematics:
     def body(self, name: str) -> Frame:
         """Frame at the origin of body ``name``, with its orientation."""
         return Frame("body", (self.robot.id("body", name),), name)
+
+    def points(self, bodies, offsets, name: str = "") -> Frame:
+        """Frame at the mean of points fixed on bodies: ``bodies`` (k,) names, ``offsets`` (k, 3) each
+        point in its body's frame (m); oriented as the first body (a site the model does not have)."""
+        offsets = np.asarray(offsets, dtype=float).reshape(-1, 3) if len(bodies) else np.zeros((0, 3))
+        if not len(bodies) or offsets.shape[0] != len(bodies) or not np.all(np.isfinite(offsets)):
+            raise InputError(f"points() needs one finite offset (3,) per body, got {len(bodies)} bodies and offsets "
+                             f"of shape {offsets.shape}")
+        ids = tuple(self.robot.id("body", b) for b in bodies)
+        return Frame("point", ids, name or "+".join(bodies), tuple(tuple(float(v) for v in o) for o in offsets))
 
     # ---------------------------------------------------------------- pose the private model
     def set_q(self, q: np.ndarray) -> None:
@@ -324,7 +339,10 @@ class Kinematics:
         jac = mj.mj_jacSite if frame.kind == "site" else mj.mj_jacBody
         out = np.empty((len(frame.ids), 2, 3, self._dofs.shape[0]))
         for s, k in enumerate(frame.ids):
-            jac(m, d, buf[0], buf[1], int(k))
+            if frame.kind == "point":  # the Jacobian of a world point moving with body k
+                mj.mj_jac(m, d, buf[0], buf[1], self._point(frame, s), int(k))
+            else:
+                jac(m, d, buf[0], buf[1], int(k))
             out[s] = buf[:, :, self._dofs]
         r = self.robot
         return FrameJacobians(out[:, 0], out[:, 1], self._dofs, r.num_joints, r.gripper, r.ratios, self._angle,
@@ -334,11 +352,20 @@ class Kinematics:
         """p (3,) at the pose of the last :meth:`set_q`."""
         if frame.kind == "site":
             return self.data.site_xpos[list(frame.ids)].mean(axis=0)
+        if frame.kind == "point":
+            return np.mean([self._point(frame, s) for s in range(len(frame.ids))], axis=0)
         return self.data.xpos[frame.ids[0]].copy()
+
+    def _point(self, frame: Frame, s: int) -> np.ndarray:
+        """World position (3,) of point s of a ``"point"`` frame at the current pose."""
+        k = frame.ids[s]
+        return self.data.xpos[k] + self.data.xmat[k].reshape(3, 3) @ np.asarray(frame.offsets[s])
 
     def current_position_jacobian(self, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
         """p (3,) and Jp (3, Q) at the pose of the last :meth:`set_q`."""
         mj, m, d = self._mj, self.model, self.data
+        if frame.kind == "point":
+            return self.current_position(frame), self.current_jacobians(frame).position_jacobian()
         if frame.kind == "site":
             mj.mj_jacSite(m, d, self._jac_a, None, int(frame.ids[0]))
             acc = self._jac_a
@@ -360,6 +387,8 @@ class Kinematics:
 
     def current_rotation_jacobian(self, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
         """R (3, 3) and Jw (3, Q) at the pose of the last :meth:`set_q`."""
+        if frame.kind == "point":
+            return self.current_rotation(frame), self.current_jacobians(frame).rotation_jacobian()
         if frame.kind == "site":
             self._mj.mj_jacSite(self.model, self.data, None, self._jac_rot, int(frame.ids[0]))
         else:
