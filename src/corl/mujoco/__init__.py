@@ -19,6 +19,11 @@ rollout                         :func:`add_servos`, :class:`PDController`, :func
 forces                          :func:`add_force_sensor`, :class:`ForceSensor`,
                                 :func:`contact_force`, :func:`touching`, :class:`ContactPairs`
                                 (the same two, with lookup tables built once: for every step)
+a task from a recording         :func:`task_from_recording` (scene, joints, recording, object,
+                                ``return_``, ``success``: h, theta, theta_of, w0 derived),
+                                :class:`RecordedTask`, :func:`load_recording`, :func:`save_recording`,
+                                :class:`Recording`, :func:`find_contacts` (replay: contact intervals,
+                                :class:`Contacts`, :class:`ContactInterval`), :func:`servo_controller`
 video                           :class:`Camera`, :class:`FrameRecorder`, :func:`caption`,
                                 :func:`write_side_by_side`, :func:`rendering_available`,
                                 :func:`make_renderer`
@@ -38,6 +43,9 @@ from corl.mujoco.forces import (ContactPairs, ForceSensor, add_force_sensor, con
 from corl.mujoco.ik import Target, solve_ik, solve_waypoints
 from corl.mujoco.kinematics import Frame, Kinematics, rotation_error, rotation_error_jacobian, skew
 from corl.mujoco.parse import parse_mjcf
+from corl.mujoco.recorded import RecordedTask, servo_controller, task_from_recording
+from corl.mujoco.recording import (ContactInterval, Contacts, Recording, find_contacts, load_recording,
+                                   save_recording)
 from corl.mujoco.robot import Gripper, Robot, example_robot_dir, load_spec, urdf_to_mjcf
 from corl.mujoco.scene import body_pose, site_pose
 from corl.mujoco.video import (Camera, FrameRecorder, caption, make_renderer, rendering_available,
@@ -52,5 +60,7 @@ __all__ = [
     "add_servo", "add_servos", "dense_reference", "PDController", "track", "add_joint_equality",
     "add_force_sensor", "ForceSensor", "remove_static_load", "contact_force", "touching",
     "ContactPairs",
+    "Recording", "load_recording", "save_recording", "find_contacts", "Contacts", "ContactInterval",
+    "RecordedTask", "task_from_recording", "servo_controller",
     "Camera", "FrameRecorder", "caption", "write_side_by_side", "rendering_available", "make_renderer",
 ]

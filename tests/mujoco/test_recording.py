@@ -1,0 +1,170 @@
+"""A task from a recording: the loader, the replay's contacts, the refusals, h's Jacobian (issue 35)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from corl.errors import InputError
+
+mujoco = pytest.importorskip("mujoco")
+
+from corl.mujoco import Recording, Robot, find_contacts, load_recording, parse_mjcf, save_recording  # noqa: E402
+
+# A point finger (three slides, a 1 cm sphere) above a sprung button (a box on a vertical slide) and a
+# crate on the other side; no gravity. The button's top is at z = 0.07, the crate's at z = 0.09.
+SCENE = """
+<mujoco>
+  <option timestep="0.002" gravity="0 0 0"/>
+  <worldbody>
+    <geom name="table" type="box" size="0.6 0.6 0.01" pos="0 0 -0.3"/>
+    <body name="finger" pos="0 0 0.3">
+      <joint name="x" type="slide" axis="1 0 0" range="-1 1"/>
+      <joint name="y" type="slide" axis="0 1 0" range="-1 1"/>
+      <joint name="z" type="slide" axis="0 0 1" range="-1 1"/>
+      <geom name="tip" type="sphere" size="0.01" mass="0.1"/>
+    </body>
+    <body name="button" pos="0.3 0 0.05">
+      <joint name="press" type="slide" axis="0 0 1" range="-0.03 0.01" stiffness="200" damping="5"/>
+      <geom name="button" type="box" size="0.05 0.04 0.02" mass="0.2"/>
+    </body>
+    <body name="crate" pos="-0.3 0 0.05">
+      <joint name="crate_slide" type="slide" axis="1 0 0" damping="5"/>
+      <geom name="crate" type="box" size="0.04 0.04 0.04" mass="0.5"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+SIZE = 0.10  # m, the button's largest extent: tolerances scale with it
+
+
+def robot() -> Robot:
+    return Robot.from_spec(parse_mjcf(SCENE), ("x", "y", "z"))
+
+
+def press(waypoints, rate: float = 100.0) -> Recording:
+    """A recording through ``waypoints`` [(t, x, y, z of the sphere's centre)], linear between them."""
+    w = np.array(waypoints, dtype=float)
+    t = np.arange(int(round(w[-1, 0] * rate)) + 1) / rate
+    q = np.column_stack([np.interp(t, w[:, 0], w[:, j]) for j in (1, 2, 3)]) - [0.0, 0.0, 0.3]
+    return Recording(t, q, ("x", "y", "z"))
+
+
+# the sphere's bottom 4 mm into the button's top at (0.32, 0.01): button frame (0.02, 0.01, 0.02)
+TOUCH = press([(0.0, 0.32, 0.01, 0.2), (0.8, 0.32, 0.01, 0.076), (1.5, 0.32, 0.01, 0.076), (2.0, 0.32, 0.01, 0.2)])
+
+
+# -- the loader ------------------------------------------------------------------------------------
+def test_npz_and_csv_round_trip(tmp_path):
+    for name in ("r.npz", "r.csv"):
+        back = load_recording(save_recording(tmp_path / name, TOUCH.t, TOUCH.q, TOUCH.joints))
+        assert back.joints == ("x", "y", "z")
+        np.testing.assert_allclose(back.q, TOUCH.q, atol=1e-8)
+        np.testing.assert_allclose(back.t, TOUCH.t, atol=1e-9)
+
+
+@pytest.mark.parametrize("name, content, says", [
+    ("a.txt", "t,x\n0,1\n", "a .npz or a .csv"),
+    ("a.csv", "", "empty"),
+    ("a.csv", "time,x\n0,1\n1,2\n", "header must be t,"),
+    ("a.csv", "t,x\n0,1\n1,oops\n", "row 3 holds something that is not a number"),
+    ("a.csv", "t,x,y\n0,1,2\n1,2\n", "row 3 has 2 fields"),
+    ("a.csv", "t,x\n0,1\n0,2\n", "times must increase"),
+    ("a.csv", "t,x\n0,1\n1,nan\n", "NaN or inf in sample 1"),
+    ("a.csv", "t,x\n0,1\n", "at least two"),
+    ("a.npz", b"not a zip", "not a readable .npz"),
+])
+def test_bad_files_are_refused_in_one_line(tmp_path, name, content, says):
+    path = tmp_path / name
+    path.write_bytes(content if isinstance(content, bytes) else content.encode())
+    with pytest.raises(InputError, match=says) as err:
+        load_recording(path)
+    assert "\n" not in str(err.value)
+
+
+def test_npz_without_q_and_a_missing_file(tmp_path):
+    np.savez(tmp_path / "a.npz", t=np.arange(3.0))
+    with pytest.raises(InputError, match="no array 'q'"):
+        load_recording(tmp_path / "a.npz")
+    with pytest.raises(InputError, match="no recording at"):
+        load_recording(tmp_path / "missing.npz")
+
+
+def test_columns_must_be_the_robots_joints():
+    with pytest.raises(InputError, match="not the robot's joints"):
+        find_contacts(robot(), Recording(TOUCH.t, TOUCH.q, ("y", "x", "z")), "button")
+    with pytest.raises(InputError, match="2 joint columns"):
+        find_contacts(robot(), Recording(TOUCH.t, TOUCH.q[:, :2]), "button")
+
+
+# -- contacts --------------------------------------------------------------------------------------
+def test_contact_interval_and_point_on_a_known_scene():
+    contacts = find_contacts(robot(), TOUCH, "button")
+    assert contacts.object_joints == ("press",)
+    (iv,) = contacts.intervals
+    # the sphere's bottom reaches the top (z 0.07) at 0.8 * (0.2 - 0.08) / (0.2 - 0.076) = 0.774 s, leaves at 1.52 s
+    assert iv.start == pytest.approx(0.774, abs=0.02) and iv.end == pytest.approx(1.52, abs=0.02)
+    assert iv.geoms == ("tip",) and iv.bodies == ("finger",)
+    np.testing.assert_allclose(iv.point[:2], [0.02, 0.01], atol=0.01 * SIZE)   # on the top, where it pressed
+    assert abs(iv.point[2] - 0.02) < 0.05 * SIZE
+    np.testing.assert_allclose(iv.normal, [0, 0, 1], atol=1e-6)               # out of the top
+    np.testing.assert_allclose(iv.offsets[0], [0, 0, -0.01], atol=0.05 * SIZE)  # the sphere's bottom
+    assert iv.slide < 0.01 * SIZE
+    assert contacts.size == pytest.approx(SIZE)
+    # the button was pushed down: the replay moved it, and the point is read in its moving frame
+    press_q = contacts.qpos[:, robot().model.jnt_qposadr[3]]
+    assert press_q.min() < -0.002
+
+
+def test_the_object_is_found_when_not_named_and_any_rate_works():
+    fast = find_contacts(robot(), TOUCH, None)
+    slow = find_contacts(robot(), press([(0.0, 0.32, 0.01, 0.2), (0.8, 0.32, 0.01, 0.076), (1.5, 0.32, 0.01, 0.076),
+                                         (2.0, 0.32, 0.01, 0.2)], rate=7.0), None)
+    assert fast.object == slow.object == "button"
+    np.testing.assert_allclose(fast.intervals[0].point, slow.intervals[0].point, atol=0.01 * SIZE)
+
+
+# -- refusals --------------------------------------------------------------------------------------
+def test_a_recording_that_never_touches_the_object_is_refused():
+    above = press([(0.0, 0.32, 0.01, 0.2), (2.0, 0.32, 0.01, 0.15)])
+    with pytest.raises(InputError, match=r"never touches 'button' \(2.00 s replayed at 500 Hz\); it touches nothing"):
+        find_contacts(robot(), above, "button")
+    crate = press([(0.0, -0.3, 0.0, 0.2), (0.8, -0.3, 0.0, 0.096), (1.5, -0.3, 0.0, 0.2)])
+    with pytest.raises(InputError, match="never touches 'button'.*it touches 'crate'"):
+        find_contacts(robot(), crate, "button")
+
+
+def test_a_recording_that_touches_two_objects_is_refused():
+    both = press([(0.0, 0.32, 0.01, 0.2), (0.5, 0.32, 0.01, 0.076), (0.8, 0.32, 0.01, 0.2), (1.6, -0.3, 0.0, 0.2),
+                  (2.0, -0.3, 0.0, 0.096), (2.4, -0.3, 0.0, 0.2)])
+    with pytest.raises(InputError, match="touches several candidate objects: 'button' .*'crate'") as err:
+        find_contacts(robot(), both, "button")
+    assert "\n" not in str(err.value)
+    with pytest.raises(InputError, match="name the object"):
+        find_contacts(robot(), both, None)
+
+
+def test_a_sliding_contact_is_refused_naming_its_interval():
+    slide = press([(0.0, 0.30, 0.0, 0.2), (0.6, 0.30, 0.0, 0.076), (1.4, 0.34, 0.0, 0.076), (2.0, 0.34, 0.0, 0.2)])
+    with pytest.raises(InputError, match=r"slid 4\d.\d mm along its surface during 0\.\d\d-1\.\d\d s.*open case") as err:
+        find_contacts(robot(), slide, "button")
+    assert "\n" not in str(err.value)
+    (iv,) = find_contacts(robot(), slide, "button", slide_tolerance=0.05).intervals  # a looser tolerance lets it be
+    assert iv.slide == pytest.approx(0.04, abs=0.05 * SIZE)
+
+
+def test_h_of_the_known_scene_holds_the_demonstration_and_theta_moves_it():
+    from corl.mujoco import RecordedTask
+
+    task = RecordedTask(robot(), find_contacts(robot(), TOUCH, "button"), lambda log: 0.0, lambda log: True)
+    assert task.theta_labels == ("contact point along x of 'button' (m)", "contact point along y of 'button' (m)")
+    np.testing.assert_allclose(task.theta_bounds.lower, [-0.05, -0.04], atol=1e-9)  # the button's top, from its box
+    np.testing.assert_allclose(task.theta_bounds.upper, [0.05, 0.04], atol=1e-9)
+    demo = task.demonstration()
+    np.testing.assert_allclose(demo.theta, [0.02, 0.01], atol=0.01 * SIZE)
+    assert np.max(np.abs(task.constraint(demo.w, demo.theta)[0])) < 1e-6
+    problem = task.trajectory_problem(demo.theta + [0.01, -0.02])
+    from corl.trajectory.solver import project
+
+    w = project(problem.equalities, demo.w).w
+    np.testing.assert_allclose(task.theta_of(w), demo.theta + [0.01, -0.02], atol=1e-6)
