@@ -81,3 +81,24 @@ def test_cli_refuses_a_bad_truth_in_one_line(tmp_path):
     assert result.exit_code == 2
     assert "--truth" in result.output and "Traceback" not in result.output
     assert not (tmp_path / "o").exists()
+
+
+def test_the_skill_settings_reach_training_and_test(tmp_path):
+    payload = bench_contexts("synthetic-context", train_count=2, test_count=1, seed=0, out=tmp_path, budget=10,
+                             skill={"p_min": 0.5})
+    assert payload["skill"] == {"p_min": 0.5}
+    from corl.store import RunStore
+
+    with RunStore(tmp_path / "train.corl", create=False, readonly=True) as db:
+        runs = db.runs()
+    assert "skill" not in runs[0].config and runs[1].config["skill"] == {"p_min": 0.5}
+
+
+def test_cli_refuses_a_bad_p_min_in_one_line(tmp_path):
+    from typer.testing import CliRunner
+
+    from corl.cli import app
+
+    result = CliRunner().invoke(app, ["bench", "contexts", "synthetic-context", "--p-min", "1.5", "--out",
+                                      str(tmp_path / "o")])
+    assert result.exit_code == 2 and "--p-min" in result.output and "Traceback" not in result.output

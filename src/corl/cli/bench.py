@@ -9,6 +9,7 @@ from typing import Optional
 import typer
 
 from corl.arguments import MAX_STARTS, NEW_PATHS
+from corl.cli.skill import P_MIN_OPTION, skill_settings
 from corl.cli.common import (
     ADDRESS, BACKEND, JSON_OUT, LOG, QUIET, check_args, fail, make_folder, method_list, print_json, progress_tracker,
     write_json,
@@ -192,6 +193,7 @@ def bench_contexts(
     jobs: int = typer.Option(2, help="parallel workers over the test contexts (-1: all cores)"),
     truth: str = typer.Option("auto", help="each test scene's best return: auto (the task's best_return() when it "
                               "has one, else grid:64), task, or grid:N (a sweep of N thetas from its demonstration)"),
+    p_min: Optional[str] = P_MIN_OPTION,
     quiet: bool = QUIET, json_out: bool = JSON_OUT, log: bool = LOG,
 ) -> None:
     """One skill, many scenes: the skill learned on TRAIN contexts against learning each test context
@@ -209,6 +211,7 @@ def bench_contexts(
         parse_truth(truth)
     except CorlError as exc:
         fail(str(exc))
+    skill_kw = skill_settings(p_min)  # every study learns in scenes
     NEW_PATHS.track(out)
     make_folder("--out", out)
     t0 = time.perf_counter()
@@ -228,7 +231,7 @@ def bench_contexts(
 
         try:
             payload = study(task, train_count=train, test_count=test, seed=seed, out=out, budget=budget, jobs=jobs,
-                            progress=tick, truth=truth)
+                            progress=tick, truth=truth, skill=skill_kw)
         except CorlError as exc:
             fail(str(exc))
     payload["wall_seconds"] = time.perf_counter() - t0

@@ -80,7 +80,7 @@ def _same(a, b) -> bool:
     return a is not None and np.shape(a) == np.shape(b) and np.allclose(a, b, rtol=0.0, atol=1e-12)
 
 
-def train(spec: str, seed: int, contexts: np.ndarray, store: Path, progress=None) -> list[dict]:
+def train(spec: str, seed: int, contexts: np.ndarray, store: Path, progress=None, skill: dict | None = None) -> list[dict]:
     """Learn in each context in turn, every run in ``store``, each from the runs before it; one
     summary per run. Resumable: a context's run is found by its context; a finished one is kept, an
     unfinished one continued exactly (:meth:`StoredRun.open`), a missing one started. A scene that
@@ -106,7 +106,8 @@ def train(spec: str, seed: int, contexts: np.ndarray, store: Path, progress=None
                 if info is not None:
                     run = StoredRun.open(ro, task, info.id)
                 else:
-                    run = StoredRun.new(task, task_spec=spec, method="CORL", seed=seed, context=c, learned_from=ro)
+                    run = StoredRun.new(task, task_spec=spec, method="CORL", seed=seed, context=c, learned_from=ro,
+                                        skill=skill if ro is not None else None)
             if info is None or info.status is not RunStatus.FINISHED:
                 with RunStore(store) as db:
                     run.attach(db)
@@ -229,7 +230,7 @@ def _nearest_corl(scene, skill, c, seed: int, budget: int):
 
 
 def evaluate_context(spec: str, seed: int, store: str, context, budget: int, grid=None,
-                     truth: tuple[str, int] = ("auto", GRID_POINTS)) -> dict:
+                     truth: tuple[str, int] = ("auto", GRID_POINTS), skill: dict | None = None) -> dict:
     """The four methods and the ground truth in one test context (runs in a worker)."""
     from corl.contexts import ContextualCORL, Skill
     from corl.loop import drive
@@ -247,7 +248,7 @@ def evaluate_context(spec: str, seed: int, store: str, context, budget: int, gri
     t0 = time.perf_counter()
     out.update(_truth(scene, truth, grid))
     out["seconds"]["truth"] = time.perf_counter() - t0
-    skill = Skill.load(store, task)
+    skill = Skill.load(store, task, **(skill or {}))
     policy = skill.policy(c)
     out["policy"] = {"theta": policy.theta.tolist(), "p_success": policy.p_success, "R_mean": policy.R_mean,
                      "R_std": policy.R_std, "nearest": policy.nearest.tolist()}
@@ -316,18 +317,21 @@ class _Job:
     store: str
     budget: int
     truth: tuple[str, int]
+    skill: dict | None
 
     def __call__(self, context):
-        return evaluate_context(self.spec, self.seed, self.store, context, self.budget, truth=self.truth)
+        return evaluate_context(self.spec, self.seed, self.store, context, self.budget, truth=self.truth,
+                                skill=self.skill)
 
 
 def bench_contexts(spec: str, *, train_count: int, test_count: int, seed: int, out: Path, budget: int = 40,
-                   jobs: int = 1, progress=None, truth: str = "auto") -> dict:
+                   jobs: int = 1, progress=None, truth: str = "auto", skill: dict | None = None) -> dict:
     """The whole study; writes ``out/train.corl`` (the skill) and returns the contexts.json payload.
 
     A ``train.corl`` already in ``out`` from the same study (task, seed, training contexts) is
     reused: its finished runs are kept and an unfinished one is resumed (:func:`train`).
-    ``truth``: how each test scene's best return is found (:func:`parse_truth`)."""
+    ``truth``: how each test scene's best return is found (:func:`parse_truth`); ``skill``: the
+    skill's settings (:class:`corl.contexts.Skill` keywords, e.g. ``{"p_min": 0.9}``), in training and test."""
     from joblib import Parallel, delayed
 
     from corl.contexts import context_task
@@ -344,9 +348,9 @@ def bench_contexts(spec: str, *, train_count: int, test_count: int, seed: int, o
     tests = draw_contexts(box, test_count, np.random.default_rng([seed, 22, 1]))
     store = Path(out) / "train.corl"
     t0 = time.perf_counter()
-    trained = train(spec, seed, contexts, store, progress)
+    trained = train(spec, seed, contexts, store, progress, skill)
     t_train = time.perf_counter() - t0
-    job = _Job(spec, seed, str(store), budget, how)
+    job = _Job(spec, seed, str(store), budget, how, dict(skill) if skill else None)
     per_context = []
     with Parallel(n_jobs=jobs, return_as="generator") as parallel:
         for i, row in enumerate(parallel(delayed(job)(c) for c in tests)):
@@ -355,7 +359,7 @@ def bench_contexts(spec: str, *, train_count: int, test_count: int, seed: int, o
                 progress("test", i + 1, len(tests), row)
     return {"task": spec, "seed": seed, "theta_labels": list(getattr(task, "theta_labels", None) or []) or None,
             "context_labels": list(getattr(task, "context_labels", None) or []) or None, "train": trained,
-            "test": per_context, "methods": summarise(per_context), "truth": truth,
+            "test": per_context, "methods": summarise(per_context), "truth": truth, "skill": dict(skill or {}),
             "skipped": {"train": sum("skipped" in r for r in trained), "test": sum("skipped" in r for r in per_context)},
             "budget": budget, "target_fraction": TARGET_FRACTION, "train_seconds": t_train,
             "wall_seconds": time.perf_counter() - t0, "versions": library_versions()}
