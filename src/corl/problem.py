@@ -323,7 +323,10 @@ class HasContexts(Protocol):
     and ``w`` its layout (n,) across contexts; ``h``, ``J`` and the rollout are those of scene ``c``.
     The demonstration is recorded once, in one context; ``with_context(c).demonstration()`` may be
     a demonstration in ``c`` (what learning from scratch there starts from). Optional:
-    ``context_labels``, k axis labels. :mod:`corl.contexts` learns across contexts.
+    ``context_labels``, k axis labels; ``best_return()``, the best return reachable in this
+    task's own scene (a closed form, or a dense search its author ran: ``corl bench contexts``
+    scores every method against it, :func:`corl.experiments.contexts.parse_truth`).
+    :mod:`corl.contexts` learns across contexts.
     """
 
     context_bounds: Bounds
@@ -343,7 +346,8 @@ OPTIONAL_MEMBERS = {"method_settings": (HasMethodSettings, True),
                     "render_comparison": (RendersComparison, True),
                     "rollout_in_worker": (RollsOutInWorker, False),
                     "with_context": (HasContexts, True), "context_bounds": (HasContexts, False),
-                    "context": (HasContexts, False), "context_labels": (HasContexts, False)}
+                    "context": (HasContexts, False), "context_labels": (HasContexts, False),
+                    "best_return": (HasContexts, True)}
 
 
 DEPRECATED_MEMBERS = {"projection": "constraint"}  # old name -> new name; read only when the new one is absent
