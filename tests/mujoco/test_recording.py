@@ -168,3 +168,86 @@ def test_h_of_the_known_scene_holds_the_demonstration_and_theta_moves_it():
 
     w = project(problem.equalities, demo.w).w
     np.testing.assert_allclose(task.theta_of(w), demo.theta + [0.01, -0.02], atol=1e-6)
+
+
+# -- a grasp: the object follows the pinched point -------------------------------------------------
+# A carriage (slides x, z) with two fingers (slides along y) pinches a bar hinged about y at
+# (0.3, 0, 0.1), 8 cm from the hinge, and lifts it along its arc to 0.3 rad; no gravity.
+PINCH_SCENE = """
+<mujoco>
+  <option timestep="0.002" gravity="0 0 0"/>
+  <worldbody>
+    <body name="carriage" pos="0 0 0.1">
+      <joint name="x" type="slide" axis="1 0 0" range="-1 1"/>
+      <joint name="z" type="slide" axis="0 0 1" range="-1 1"/>
+      <geom type="sphere" size="0.005" contype="0" conaffinity="0" mass="0.1"/>
+      <body name="left" pos="0 0.03 0">
+        <joint name="left" type="slide" axis="0 1 0" range="-0.03 0.03"/>
+        <geom name="left" type="box" size="0.005 0.005 0.005" mass="0.05"/>
+      </body>
+      <body name="right" pos="0 -0.03 0">
+        <joint name="right" type="slide" axis="0 1 0" range="-0.03 0.03"/>
+        <geom name="right" type="box" size="0.005 0.005 0.005" mass="0.05"/>
+      </body>
+    </body>
+    <body name="bar" pos="0.3 0 0.1">
+      <joint name="bar_hinge" type="hinge" axis="0 1 0" range="-0.6 0.6" damping="0.01"/>
+      <geom name="bar" type="box" size="0.08 0.01 0.01" pos="-0.08 0 0" mass="0.2"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+R_PINCH, LIFT = 0.08, 0.3
+
+
+def pinch() -> Recording:
+    """Open, close on the bar (0.3-0.6 s), lift it along its arc to LIFT (0.8-1.8 s), hold, at 100 Hz."""
+    t = np.arange(201) / 100.0
+    angle = LIFT * np.clip((t - 0.8) / 1.0, 0.0, 1.0)
+    close = 0.0155 * np.clip((t - 0.3) / 0.3, 0.0, 1.0)  # the faces 0.5 mm into the bar's sides
+    q = np.column_stack([0.3 - R_PINCH * np.cos(angle), R_PINCH * np.sin(angle), -close, close])
+    return Recording(t, q, ("x", "z", "left", "right"))
+
+
+def test_a_grasped_object_follows_the_pinch_and_the_point_holds():
+    robot = Robot.from_spec(parse_mjcf(PINCH_SCENE), ("x", "z", "left", "right"))
+    contacts = find_contacts(robot, pinch(), "bar", grasp=True)
+    (iv,) = contacts.intervals
+    assert iv.start == pytest.approx(0.58, abs=0.03) and iv.end == pytest.approx(2.0, abs=0.01)
+    assert set(iv.bodies) == {"left", "right"}
+    np.testing.assert_allclose(iv.point, [-R_PINCH, 0.0, 0.0], atol=0.01 * R_PINCH)  # on the bar's axis, 8 cm out
+    np.testing.assert_allclose(np.abs(iv.normal), [0.0, 1.0, 0.0], atol=1e-3)        # the squeeze axis
+    assert iv.slide < 0.01 * R_PINCH
+    angle = contacts.qpos[:, robot.model.jnt_qposadr[robot.id("joint", "bar_hinge")]]
+    assert angle[-1] == pytest.approx(LIFT, abs=0.01) and abs(angle[contacts.step(0.7)]) < 0.01
+
+
+def test_grasp_needs_the_objects_name():
+    robot = Robot.from_spec(parse_mjcf(PINCH_SCENE), ("x", "z", "left", "right"))
+    with pytest.raises(InputError, match="grasp=True needs the grasped object's name"):
+        find_contacts(robot, pinch(), None, grasp=True)
+
+
+def test_the_grip_as_theta_moves_the_held_gripper_value():
+    from corl.mujoco import Gripper, RecordedTask
+
+    gripper = Gripper(("left", "right"), ratios=(-1.0, 1.0))  # c: how far each finger closed (m)
+    robot = Robot.from_spec(parse_mjcf(PINCH_SCENE), ("x", "z"), gripper)
+    rec = pinch()
+    contacts = find_contacts(robot, Recording(rec.t, rec.q[:, :3] * [1, 1, -1]), "bar", grasp=True)
+    task = RecordedTask(robot, contacts, lambda log: 0.0, lambda log: True, directions=("-x",),
+                        grip_bounds=(0.012, 0.02))
+    assert task.theta_labels[-1].startswith("gripper while it holds")
+    np.testing.assert_allclose(task.theta0, [R_PINCH, 0.0155], atol=0.01 * R_PINCH)
+    assert (task.theta_bounds.lower[-1], task.theta_bounds.upper[-1]) == (0.012, 0.02)
+    demo = task.demonstration()
+    np.testing.assert_allclose(demo.theta, task.theta0, atol=1e-6)
+    from corl.trajectory.solver import project
+
+    theta = demo.theta + [-0.02, 0.003]
+    w = project(task.trajectory_problem(theta).equalities, demo.w).w
+    np.testing.assert_allclose(task.theta_of(w), theta, atol=1e-6)
+    with pytest.raises(InputError, match="grip_bounds needs a robot with a gripper"):
+        RecordedTask(Robot.from_spec(parse_mjcf(PINCH_SCENE), ("x", "z", "left", "right")),
+                     find_contacts(Robot.from_spec(parse_mjcf(PINCH_SCENE), ("x", "z", "left", "right")), pinch(),
+                                   "bar", grasp=True), lambda log: 0.0, lambda log: True, grip_bounds=(0.0, 0.02))

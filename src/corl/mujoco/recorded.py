@@ -9,7 +9,8 @@ D_i         (3, m_i) orthonormal directions on the object's surface theta moves 
             the contact's two tangent directions, or the object axes a user names, projected onto
             the tangent plane
 theta       (m,) = (theta_1, ..., theta_I): ``theta_i = D_i^T p_i``, the contact point's coordinates
-            along D_i in the object's frame (m); the demonstration's is ``D_i^T p0_i``
+            along D_i in the object's frame (m); the demonstration's is ``D_i^T p0_i``; with
+            ``grip_bounds`` one more: the gripper's value while it holds (its recorded closed value)
 p_i(theta)  ``p0_i + D_i (theta_i - D_i^T p0_i)``: the point on the object theta names
 t_k         instants every ``spacing`` s of each interval, from ``approach`` s before it starts
 d_ik        (3,) where the robot's contact point was at t_k relative to p0_i, in the object's frame
@@ -110,7 +111,7 @@ class RecordedTask:
                  name: str | None = None, directions=None, theta_bounds: Bounds | None = None,
                  hold_orientation: bool = False, orientation_weight: float = 0.3, approach: float = 0.4,
                  spacing: float = 0.1, control_points: int | None = None, controller: PDController | None = None,
-                 settings=None) -> None:
+                 settings=None, grip_bounds: tuple[float, float] | None = None) -> None:
         if not (callable(return_) and callable(success)):
             raise InputError("return_ and success must be callables log -> number and log -> bool")
         if not (spacing > 0 and approach >= 0 and orientation_weight > 0):
@@ -134,11 +135,16 @@ class RecordedTask:
             k = np.arange(-np.floor(approach / spacing + 1e-9), np.floor((iv.end - iv.start) / spacing + 1e-9) + 1)
             t = iv.start + spacing * k
             self.times.append(t[(t > 1e-9) & (t <= self.duration + 1e-9)])
-        self.theta_labels = tuple(labels)
         self.theta0 = np.concatenate([D.T @ iv.point for D, iv in zip(self.directions, contacts.intervals)])
-        self.theta_bounds = theta_bounds if theta_bounds is not None else self._geometric_bounds()
+        bounds = self._geometric_bounds()
         self.joint_names = tuple(robot.joints) + (("gripper",) if robot.gripper else ())
         self._targets = [self._instants(i) for i in range(len(contacts.intervals))]
+        self._closed = [[False] * len(x) for x in self._targets]  # instants whose gripper value is theta's
+        if grip_bounds is not None:
+            bounds = self._grip_theta(grip_bounds, bounds)
+            labels.append("gripper while it holds (the gripper coordinate)")
+        self.theta_labels = tuple(labels)
+        self.theta_bounds = theta_bounds if theta_bounds is not None else bounds
         self._controller, self._settings = controller, settings
         self._problems: dict = {}
         self.demo_report = None
@@ -149,6 +155,19 @@ class RecordedTask:
         lower = np.concatenate([s.min(axis=0) for s in spans])
         upper = np.concatenate([s.max(axis=0) for s in spans])
         return Bounds(lower, upper)
+
+    def _grip_theta(self, grip_bounds, bounds: Bounds) -> Bounds:
+        """theta's last coordinate: the gripper value at the instants it holds the value it has at the
+        end of the first contact (within 2 % of ``grip_bounds``' width); bounds ``grip_bounds``."""
+        if self.robot.gripper is None:
+            raise InputError("grip_bounds needs a robot with a gripper (its coordinate is q's last column)")
+        lower, upper = (float(b) for b in grip_bounds)
+        if not lower < upper:
+            raise InputError(f"grip_bounds ({lower}, {upper}): the lower bound must be below the upper")
+        closed, tol = self._targets[0][-1][4], 0.02 * (upper - lower)
+        self._closed = [[abs(x[4] - closed) <= tol for x in instants] for instants in self._targets]
+        self.theta0 = np.append(self.theta0, closed)
+        return Bounds(np.append(bounds.lower, lower), np.append(bounds.upper, upper))
 
     def _instants(self, i: int) -> list:
         """Per t_k of interval i: (t_k, c_k (3,), M_k (3, m_i), R_k (3, 3), gripper value) with the
@@ -184,7 +203,8 @@ class RecordedTask:
                 m = self.directions[i].shape[1]
                 th = theta[offset:offset + m]
                 offset += m
-                for t, base, M, R, grip in instants:
+                for (t, base, M, R, grip), closed in zip(instants, self._closed[i]):
+                    grip = theta[-1] if closed else grip
                     parts, target = [position_feature(self.kin, self.frames[i])], [base + M @ th]
                     if self.hold_orientation:
                         parts.append(orientation_feature(self.kin, self.frames[i], R, weight=self.orientation_weight))
@@ -208,6 +228,10 @@ class RecordedTask:
             t, base, M, _, _ = next(x for x in instants if x[0] >= self.contacts.intervals[i].start - 1e-9)
             p = self.kin.position(self.spline.positions(w, [t])[0], self.frames[i])
             out.append(M.T @ (p - base))  # M = R_o D has orthonormal columns
+        if any(any(c) for c in self._closed):
+            i = next(i for i, c in enumerate(self._closed) if any(c))
+            t = self._targets[i][self._closed[i].index(True)][0]
+            out.append(self.spline.positions(w, [t])[0][-1:])
         return np.concatenate(out)
 
     @cached_property
@@ -267,15 +291,17 @@ class RecordedTask:
         return {k: np.array(v) for k, v in log.items()}
 
     def rollout(self, w) -> Outcome:
-        """``success(log)`` and, on success, ``return_(log)`` of :meth:`run`."""
+        """``success(log)`` and, on success, ``return_(log)`` of :meth:`run` (a subclass's ``run`` may
+        return another log, e.g. a task's own simulation result, for its ``return_`` and ``success``)."""
         log = self.run(w)
         ok = bool(self._success(log))
-        return Outcome(ok, float(self._return(log)) if ok else None, {"touched": bool(log["touch"].any())})
+        touched = {"touched": bool(np.any(log["touch"]))} if isinstance(log, dict) and "touch" in log else {}
+        return Outcome(ok, float(self._return(log)) if ok else None, touched)
 
 
 def task_from_recording(scene, joints: Sequence[str] | None, recording, object: str | None, *,
                         return_: Callable, success: Callable, gripper=None, gap: float = 0.1,
-                        slide_tolerance: float | None = None, **options) -> RecordedTask:
+                        slide_tolerance: float | None = None, grasp: bool = False, **options) -> RecordedTask:
     """A CORL task from a scene, its moving joints, a recorded demonstration and the object's name.
 
     Parameters
@@ -287,12 +313,16 @@ def task_from_recording(scene, joints: Sequence[str] | None, recording, object: 
     object : the body the robot touches (None: the one movable body the recording touches).
     return_, success : ``log -> float`` and ``log -> bool`` on the log of :meth:`RecordedTask.run`.
     gripper : a :class:`~corl.mujoco.Gripper` (its coordinate is q's last column), scene not a Robot.
-    gap, slide_tolerance : see :func:`~corl.mujoco.find_contacts`.
+    gap, slide_tolerance, grasp : see :func:`~corl.mujoco.find_contacts` (``grasp``: the robot holds
+        the object in its gripper, whose column then is best the gripper's command: a closed grip's
+        position is where the object stopped the fingers, and tracking it does not squeeze).
     **options : for :class:`RecordedTask`: ``name``; ``directions`` (object axes such as ``("-x",)``
         or 3-vectors theta moves the contact along; default the two tangent directions);
         ``theta_bounds`` (default the object's extent along them); ``hold_orientation``,
         ``orientation_weight`` (m/rad); ``approach``, ``spacing`` (s: h's instants);
-        ``control_points``; ``controller``; ``settings`` (a ``corl.settings.MethodSettings``).
+        ``control_points``; ``controller``; ``settings`` (a ``corl.settings.MethodSettings``);
+        ``grip_bounds`` (lower, upper): the gripper's value while it holds the object becomes theta's
+        last coordinate (e.g. how tight a grasp squeezes), within these bounds.
 
     Returns
     -------
@@ -303,7 +333,7 @@ def task_from_recording(scene, joints: Sequence[str] | None, recording, object: 
     """
     robot = _robot(scene, joints, gripper)
     rec = recording if isinstance(recording, Recording) else load_recording(recording)
-    contacts = find_contacts(robot, rec, object, gap=gap, slide_tolerance=slide_tolerance)
+    contacts = find_contacts(robot, rec, object, gap=gap, slide_tolerance=slide_tolerance, grasp=grasp)
     return RecordedTask(robot, contacts, return_, success, **options)
 
 

@@ -6,14 +6,16 @@ recording   times ``t`` (T,) s and joint positions ``q`` (T, Q) as a robot logs 
             teaching, teleoperation): any rate, any length, uneven steps allowed
 replay      the recording interpolated linearly onto the model's timestep ``dt``, the robot's
             joints *prescribed* (position and velocity written every step), everything else
-            simulated by ``mj_step``: the object moves as the robot pushes it
+            simulated by ``mj_step``: the object moves as the robot pushes it; a *grasped* object
+            (``grasp=True``) follows the pinched point instead (a position log has no grip force)
 interval    a stretch of time the robot touches the object (gaps under ``gap`` s are bridged)
 offsets     (k, 3) the robot's contact point on each touching body, in that body's frame (m): the
             mean of MuJoCo's contact positions over the interval; the robot's *contact point* is
             their mean (a ``"point"`` frame, :meth:`~corl.mujoco.Kinematics.points`)
 point       (3,) the contact point on the object, in the object's frame (m) (Eq. 6's theta0,
             before it is reduced to the surface's tangent directions)
-normal      (3,) the contact normal in the object's frame, out of the object towards the robot
+normal      (3,) the contact normal in the object's frame, out of the object towards the robot; of
+            a pinch (normals from opposite sides) the squeeze axis
 slide       m, how far the robot's contact point moved along the object's surface during an
             interval: more than the tolerance is a sliding contact, the paper's open case (Sec. IX)
 
@@ -224,7 +226,7 @@ def subtree(model, roots) -> set:
 
 
 def find_contacts(robot: Robot, recording: Recording, object: str | None = None, *, gap: float = 0.1,
-                  slide_tolerance: float | None = None) -> Contacts:
+                  slide_tolerance: float | None = None, grasp: bool = False) -> Contacts:
     """Replay ``recording`` in ``robot``'s scene and find where the robot touches ``object``.
 
     Parameters
@@ -234,6 +236,11 @@ def find_contacts(robot: Robot, recording: Recording, object: str | None = None,
     object : the touched body's name; None: the one movable body the recording touches.
     gap : s, contact breaks shorter than this join one interval.
     slide_tolerance : m, the largest slide of a contact (default 5 % of the object's size).
+    grasp : the robot grasps ``object`` (it must be named): from the first step its bodies touch it
+        from opposite sides (a pinch) until they all let go, the object's joints follow the grasped
+        point (least squares) instead of being simulated. A joint-position log holds no grip force,
+        and a prescribed replay passes none on: a grasped handle would stay put and the fingers slide
+        off it.
 
     Raises
     ------
@@ -250,8 +257,11 @@ def find_contacts(robot: Robot, recording: Recording, object: str | None = None,
                          f"({', '.join(robot.joints)}{' + gripper' if robot.gripper else ''})")
     if rec.joints and rec.joints[:robot.num_joints] != tuple(robot.joints):
         raise InputError(f"{where}: columns {list(rec.joints)} are not the robot's joints {list(robot.joints)} in order")
+    if grasp and object is None:
+        raise InputError("grasp=True needs the grasped object's name")
     dt = float(model.opt.timestep)
     times, q = rec.resampled(dt)
+    holder = _Holder(model, robot.id("body", object)) if grasp else None
     moved = subtree(model, [model.jnt_bodyid[model.dof_jntid[d]] for d in robot.dofs])
     body_of = model.geom_bodyid
     data = mujoco.MjData(model)
@@ -262,14 +272,20 @@ def find_contacts(robot: Robot, recording: Recording, object: str | None = None,
     for k in range(len(times)):
         robot.write(data, q[k])
         data.qvel[dofs] = dq[k]
+        if holder is not None:
+            holder.follow(data, dt)
         mujoco.mj_forward(model, data)
         qpos[k] = data.qpos
+        step = []
         for c in data.contact[: data.ncon]:
             g1, g2 = int(c.geom1), int(c.geom2)
             a, b = body_of[g1] in moved, body_of[g2] in moved
             if a != b:  # robot against something else; the normal points from geom1 to geom2
                 n = np.array(c.frame[:3]) * (1.0 if b else -1.0)  # out of the other geom, towards the robot
-                records.append((k, g2 if b else g1, g1 if b else g2, np.array(c.pos), n))
+                step.append((k, g2 if b else g1, g1 if b else g2, np.array(c.pos), n))
+        records += step
+        if holder is not None:
+            holder.update(data, step)
         mujoco.mj_step(model, data)
     name = lambda kind, i: mujoco.mj_id2name(model, kind, int(i)) or f"#{int(i)}"  # noqa: E731
     touched = {}  # movable body -> steps
@@ -294,6 +310,58 @@ def find_contacts(robot: Robot, recording: Recording, object: str | None = None,
                          f"object's contact point, record the motion with '{object}' alone")
     return _analyse(robot, rec, object, times, q, qpos, [r for r in records if body_of[r[2]] in mine], gap,
                     slide_tolerance)
+
+
+class _Holder:
+    """The grasped object of a replay: its joints follow the robot's grasp point while held."""
+
+    def __init__(self, model, obj: int) -> None:
+        self.model, self.obj = model, obj
+        self.mine = subtree(model, [obj])
+        chain = _chain(model, obj)
+        joints = [j for j in range(model.njnt) if model.jnt_bodyid[j] in chain and model.jnt_type[j] in (2, 3)]
+        self.qadr = np.array([model.jnt_qposadr[j] for j in joints], dtype=int)
+        self.dadr = np.array([model.jnt_dofadr[j] for j in joints], dtype=int)
+        self.held = None  # (robot bodies, their offsets (k, 3), the point in the object's frame (3,))
+
+    def update(self, data, step) -> None:
+        """Start holding at a pinch (normals on the object more than 120 deg apart), stop when no
+        robot body touches it any more."""
+        mine = [r for r in step if self.model.geom_bodyid[r[2]] in self.mine]
+        if self.held is not None:
+            if not mine:
+                self.held = None
+            return
+        normals = np.array([r[4] for r in mine]).reshape(-1, 3)
+        if len(self.qadr) == 0 or len(mine) < 2 or not np.min(normals @ normals.T) < -0.5:
+            return
+        bodies = sorted({int(self.model.geom_bodyid[r[1]]) for r in mine})
+        point = np.mean([r[3] for r in mine], axis=0)
+        offsets = np.array([(point - data.xpos[b]) @ data.xmat[b].reshape(3, 3) for b in bodies])
+        R = data.xmat[self.obj].reshape(3, 3)
+        self.held = (bodies, offsets, (point - data.xpos[self.obj]) @ R)
+
+    def follow(self, data, dt: float, iterations: int = 8) -> None:
+        """Move the object's joints (qpos, qvel) so that its held point lies on the robot's."""
+        import mujoco
+
+        if self.held is None:
+            return
+        model, (bodies, offsets, local) = self.model, self.held
+        before = data.qpos[self.qadr].copy()
+        jac = np.zeros((3, model.nv))
+        for _ in range(iterations):
+            mujoco.mj_kinematics(model, data)
+            mujoco.mj_comPos(model, data)
+            target = np.mean([data.xpos[b] + data.xmat[b].reshape(3, 3) @ o for b, o in zip(bodies, offsets)], axis=0)
+            here = data.xpos[self.obj] + data.xmat[self.obj].reshape(3, 3) @ local
+            error = target - here
+            if np.linalg.norm(error) < 1e-7:
+                break
+            mujoco.mj_jac(model, data, jac, None, here, self.obj)
+            A = jac[:, self.dadr]
+            data.qpos[self.qadr] += np.linalg.lstsq(A, error, rcond=None)[0]
+        data.qvel[self.dadr] = (data.qpos[self.qadr] - before) / dt
 
 
 def _analyse(robot, rec, object, times, q, qpos, records, gap, slide_tolerance) -> Contacts:
@@ -340,6 +408,8 @@ def _analyse(robot, rec, object, times, q, qpos, records, gap, slide_tolerance) 
         geoms = sorted({mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or f"#{g}"
                         for b in bodies for _, g in per_body[b]})
         normal = np.mean(normals, axis=0)
+        if np.linalg.norm(normal) < 0.5:  # a pinch from opposite sides: the squeeze axis
+            normal = np.linalg.eigh(np.asarray(normals).T @ np.asarray(normals))[1][:, -1]
         normal /= max(np.linalg.norm(normal), 1e-12)
         track = []  # the robot's contact point in the object's frame, every step of the interval
         for k in range(int(run[0]), int(run[-1]) + 1):
