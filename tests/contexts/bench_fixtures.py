@@ -37,3 +37,21 @@ def low_truth(seed: int = 0):
 
 def no_demo_above(seed: int = 0):
     return NoDemoAbove()
+
+
+class NoTruthAbove(ContextualSyntheticTask):
+    """A family whose best_return() raises for c > 0.3 (its author's search found no success there)."""
+
+    name = "synthetic-no-truth"
+
+    def with_context(self, c):
+        return NoTruthAbove(self.w0, critical_distance=self.critical_distance, context=c)
+
+    def best_return(self) -> float:
+        if float(self.context[0]) > 0.3:
+            raise ValueError(f"no theta of the grid succeeds in scene {float(self.context[0]):.3f}")
+        return 1.0
+
+
+def no_truth_above(seed: int = 0):
+    return NoTruthAbove()

@@ -102,3 +102,12 @@ def test_cli_refuses_a_bad_p_min_in_one_line(tmp_path):
     result = CliRunner().invoke(app, ["bench", "contexts", "synthetic-context", "--p-min", "1.5", "--out",
                                       str(tmp_path / "o")])
     assert result.exit_code == 2 and "--p-min" in result.output and "Traceback" not in result.output
+
+
+def test_a_scene_whose_ground_truth_raises_is_named_and_skipped(tmp_path):
+    payload = bench_contexts("bench_fixtures:no_truth_above", train_count=2, test_count=4, seed=0, out=tmp_path,
+                             budget=10)
+    skipped = [t for t in payload["test"] if "skipped" in t]
+    assert skipped and len(skipped) < 4 and all(t["context"][0] > 0.3 for t in skipped)
+    assert all("ground truth raised ValueError: no theta of the grid" in t["skipped"] for t in skipped)
+    assert payload["skipped"]["test"] == len(skipped)

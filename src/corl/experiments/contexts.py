@@ -246,7 +246,12 @@ def evaluate_context(spec: str, seed: int, store: str, context, budget: int, gri
     except Exception as exc:  # a user's family: one scene without a demonstration is skipped, not the study
         return {**out, "skipped": f"with_context(c).demonstration() raised {type(exc).__name__}: {exc}"}
     t0 = time.perf_counter()
-    out.update(_truth(scene, truth, grid))
+    try:
+        out.update(_truth(scene, truth, grid))
+    except InputError:
+        raise  # the study's own settings (--truth task on a task without best_return)
+    except Exception as exc:  # the task's best_return() or its sweep fails in this scene: named, skipped
+        return {**out, "skipped": f"its ground truth raised {type(exc).__name__}: {exc}".splitlines()[0]}
     out["seconds"]["truth"] = time.perf_counter() - t0
     skill = Skill.load(store, task, **(skill or {}))
     policy = skill.policy(c)
