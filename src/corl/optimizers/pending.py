@@ -1,0 +1,44 @@
+"""Several trials out at once: keeping a safe method's next proposal apart from the pending ones.
+
+Glossary
+--------
+out    : (p, m) points handed out by ``ask`` and not told yet (K robots: p < K)
+radius : (m,) half-axes of the ellipsoid around each pending point where no proposal goes
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["AwayFromPending", "PENDING_RADIUS", "PENDING_FALLBACK"]
+
+#: Several trials out at once: no proposal within this many of g_S's length scales (per dimension, an
+#: ellipsoid) of a pending trial, where that trial's outcome will soon tell most of what another would.
+#: Safety needs no fantasy: every proposal is in SEIB's band under the data told, whatever the pending
+#: trials' outcomes (g_S is never told a success that has not happened).
+PENDING_RADIUS = 0.5
+PENDING_FALLBACK = 0.05  # box widths, for a g_S without length scales
+
+
+class AwayFromPending:
+    """``acquisition`` with 0 within ``radius`` (m,) (ellipsoidal) of each pending point ``out`` (p, m)."""
+
+    def __init__(self, acquisition, out: np.ndarray, radius: np.ndarray) -> None:
+        self.acquisition, self.out, self.radius = acquisition, np.asarray(out, dtype=float), np.asarray(radius, float)
+
+    def __getattr__(self, name):  # boundary_level, parts, ... of the acquisition
+        if name.startswith("_"):
+            raise AttributeError(name)
+        return getattr(self.acquisition, name)
+
+    def _far(self, X: np.ndarray) -> np.ndarray:
+        d = np.linalg.norm((np.asarray(X, dtype=float)[:, None, :] - self.out[None]) / self.radius, axis=2)
+        return np.min(d, axis=1) >= 1.0
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        return np.where(self._far(X), np.asarray(self.acquisition(X), dtype=float), 0.0)
+
+    def on_lattice(self, X: np.ndarray, axes) -> np.ndarray:
+        on_lattice = getattr(self.acquisition, "on_lattice", None)
+        values = self.acquisition(X) if on_lattice is None else on_lattice(X, axes)
+        return np.where(self._far(X), np.asarray(values, dtype=float), 0.0)
