@@ -64,7 +64,7 @@ def test_report_figures_on_a_full_disk(store, tmp_path, monkeypatch):
                               "--return", "0.2"])
     assert res.exit_code == 0, res.output
 
-    def full(plt, fig, path):
+    def full(plt, fig, path, **kwargs):  # kwargs: the trial it was drawn at
         Path(path).write_bytes(b"\x89PNG half")
         raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
 

@@ -216,6 +216,15 @@ class ContextualModels:
             setattr(self, f"last_{kind}", res.model)
         return res.model
 
+    def return_spread(self, y) -> float:
+        """The returns' spread for SEIB's margins (in the units of ``y``, this scene's successes): that of
+        every scene's successes and ``y``. One scene's few returns say little of how far R varies;
+        with one success its spread would be that return's size (corl.optimizers.safe.return_scale)."""
+        from corl.optimizers.safe import return_scale
+
+        p = self.prior
+        return return_scale(np.concatenate([p.returns[p.success & np.isfinite(p.returns)], np.asarray(y, float)]))
+
     def regression(self, X, y, *, keep: bool = True):
         """g_R on this context's successes ``X`` (d, m), ``y`` (d,) and every other success."""
         p = self.prior

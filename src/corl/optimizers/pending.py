@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["AwayFromPending", "PENDING_RADIUS", "PENDING_FALLBACK"]
+__all__ = ["AwayFromPending", "apart", "PENDING_RADIUS", "PENDING_FALLBACK"]
 
 #: Several trials out at once: no proposal within this many of g_S's length scales (per dimension, an
 #: ellipsoid) of a pending trial, where that trial's outcome will soon tell most of what another would.
@@ -42,3 +42,16 @@ class AwayFromPending:
         on_lattice = getattr(self.acquisition, "on_lattice", None)
         values = self.acquisition(X) if on_lattice is None else on_lattice(X, axes)
         return np.where(self._far(X), np.asarray(values, dtype=float), 0.0)
+
+
+def apart(acquisition, out: np.ndarray, classifier, bounds):
+    """``acquisition`` kept away from the pending trials ``out`` (p, m); as it is with none.
+
+    The radius is :data:`PENDING_RADIUS` of ``classifier``'s (g_S's) length scales, or
+    :data:`PENDING_FALLBACK` box widths for a classifier without them.
+    """
+    if not len(out):
+        return acquisition
+    lengths = getattr(getattr(getattr(classifier, "_model", None), "kernel_", None), "lengthscales", None)
+    radius = PENDING_FALLBACK * bounds.width if lengths is None else PENDING_RADIUS * lengths * np.ones(len(out[0]))
+    return AwayFromPending(acquisition, out, radius)
