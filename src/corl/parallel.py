@@ -67,8 +67,11 @@ class ParallelCORL(CORL):
         return proposal
 
     def try_ask(self) -> Proposal | None:
-        """The next trial, handed out now, or None while nothing can go out before a tell."""
+        """The next trial, handed out now, or None while nothing can go out before a tell (also once
+        Algorithm 1 has stopped with trials still out: their tells are awaited)."""
         if self._finished:
+            if self.pending:
+                return None
             raise StateError("CORL has finished; read .best")
         if len(self.pending) >= self.robots:
             return None
