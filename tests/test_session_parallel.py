@@ -91,7 +91,7 @@ def test_a_crash_with_four_out_loses_none_and_ends_as_the_uninterrupted_run(task
         with pytest.raises(StateError, match="name the one"):
             again.tell(Outcome(True, 0.0))
         drive(again, task)
-        assert again.done
+        assert again.done and db.latest_run().status.value == "finished"
     assert trials_of(tmp_path / "cut.corl") == trials_of(tmp_path / "whole.corl")
 
 

@@ -14,6 +14,8 @@ local backend exists: Ray and Dask are not done (InputError names them).
 from __future__ import annotations
 
 import multiprocessing
+import os
+import signal
 import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from typing import Callable
@@ -26,6 +28,14 @@ __all__ = ["run_fleet", "BACKENDS"]
 
 BACKENDS = ("local",)  # processes on this machine; Ray actors and Dask workers are not done
 _TASK: Task | None = None  # the task the workers fork with (set before the pool starts them)
+
+
+def _start_worker(parent: int) -> None:
+    """A worker: Ctrl-C is the parent's; killed with the parent (it holds a copy of the store's writer lock)."""
+    from corl.tasks.worker import _die_with_parent
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent(parent)
 
 
 def _rollout(w, seconds: float):
@@ -54,7 +64,8 @@ def run_fleet(session, task: Task, *, robots: int, backend: str = "local", trial
         raise InputError(f"trial_seconds must be a finite number >= 0, got {trial_seconds!r}")
     _TASK, told, running = task, 0, {}
     context = multiprocessing.get_context("fork")
-    with ProcessPoolExecutor(max_workers=robots, mp_context=context) as pool:
+    with ProcessPoolExecutor(max_workers=robots, mp_context=context, initializer=_start_worker,
+                             initargs=(os.getpid(),)) as pool:
         def send(proposal: Proposal) -> None:
             running[pool.submit(_rollout, proposal.w, float(trial_seconds))] = proposal
 

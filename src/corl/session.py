@@ -237,6 +237,8 @@ class StoredRun:
         proposal = try_ask()
         if proposal is None:
             self.store.note_wait(self.run_id)
+            if self.learner.done:  # Algorithm 1 ended as it was asked for its next trial
+                self.store.set_status(self.run_id, RunStatus.FINISHED)
             return None
         return self.hand_out(proposal)
 
