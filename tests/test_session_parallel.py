@@ -17,6 +17,9 @@ from corl.store import RunStore, StoreError
 from corl.tasks.registry import load_task
 
 
+FAST = {"rollout_every_step": False}  # step 1 rolls out its converged motion only: ~40 trials
+
+
 @pytest.fixture(scope="module")
 def task():
     return load_task("synthetic", seed=0)
@@ -77,11 +80,11 @@ def trials_of(path):
 
 def test_a_crash_with_four_out_loses_none_and_ends_as_the_uninterrupted_run(task, tmp_path):
     with RunStore(tmp_path / "whole.corl") as db:
-        whole = StoredRun.new(task, task_spec="synthetic", method="CORL", seed=0, robots=4).attach(db)
+        whole = StoredRun.new(task, task_spec="synthetic", method="CORL", seed=0, robots=4, corl_overrides=FAST).attach(db)
         drive(whole, task)
         assert whole.done
     with RunStore(tmp_path / "cut.corl") as db:
-        cut = StoredRun.new(task, task_spec="synthetic", method="CORL", seed=0, robots=4).attach(db)
+        cut = StoredRun.new(task, task_spec="synthetic", method="CORL", seed=0, robots=4, corl_overrides=FAST).attach(db)
         assert drive(cut, task, stop_when_out=4), "the learner never had 4 trials out"
         out = [p.index for p in cut.pending]
     del cut  # the learner is gone; the robots' outcomes arrive after the restart
@@ -98,13 +101,13 @@ def test_a_crash_with_four_out_loses_none_and_ends_as_the_uninterrupted_run(task
 SCRIPT = textwrap.dedent("""
     import os, signal, sys
     sys.path.insert(0, {tests!r})
-    from test_session_parallel import drive
+    from test_session_parallel import FAST, drive
     from corl.session import StoredRun
     from corl.store import RunStore
     from corl.tasks.registry import load_task
     task = load_task("synthetic", seed=0)
     db = RunStore({path!r})
-    run = StoredRun.new(task, task_spec="synthetic", method="CORL", seed=0, robots=4).attach(db)
+    run = StoredRun.new(task, task_spec="synthetic", method="CORL", seed=0, robots=4, corl_overrides=FAST).attach(db)
     if drive(run, task, stop_when_out=4):
         os.kill(os.getpid(), signal.SIGKILL)
 """)

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from corl.errors import InputError, StateError
+from corl.optimizers.pending import PENDING_RADIUS
 from corl.optimizers.safe import SafeBOOptimizer
 from corl.problem import Bounds, Outcome
 
@@ -60,7 +61,7 @@ def test_four_out_are_apart_and_each_safe_under_the_told_data():
     _, classifier = opt._fitted_models()  # g_S on the told data only: no fantasy of a pending success
     p = classifier.predict_proba(np.array(out))
     assert np.all(p >= opt.seib.p_band), p
-    radius = 0.5 * classifier.kernel_.lengthscales
+    radius = PENDING_RADIUS * classifier.kernel_.lengthscales
     for i in range(4):
         for j in range(i):
             assert np.linalg.norm((out[i] - out[j]) / radius) >= 1.0 - 1e-9

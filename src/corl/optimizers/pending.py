@@ -15,8 +15,12 @@ __all__ = ["AwayFromPending", "apart", "PENDING_RADIUS", "PENDING_FALLBACK"]
 #: Several trials out at once: no proposal within this many of g_S's length scales (per dimension, an
 #: ellipsoid) of a pending trial, where that trial's outcome will soon tell most of what another would.
 #: Safety needs no fantasy: every proposal is in SEIB's band under the data told, whatever the pending
-#: trials' outcomes (g_S is never told a success that has not happened).
-PENDING_RADIUS = 0.5
+#: trials' outcomes (g_S is never told a success that has not happened). Measured on the synthetic task
+#: (corl bench parallel synthetic --robots 4 --trial-seconds 0.5 --no-rollout-every-step, seed 0):
+#: 0.5 -> wall 0.87x one robot's, 40 trials, 2 failures; 0.25 -> 0.68x, 52 trials, 1 failure, final
+#: return 0.99977 (one robot 0.9999998); 0.1 -> 0.58x, 52 trials, 1 failure, 0.9983 (proposals that
+#: close tell little more than one).
+PENDING_RADIUS = 0.25
 PENDING_FALLBACK = 0.05  # box widths, for a g_S without length scales
 
 
