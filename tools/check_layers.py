@@ -46,18 +46,19 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("mujoco", ("corl.mujoco",)),  # the robot kit: features of Eq. 6 for any MJCF / URDF
     ("realise", ("corl.realise",)),  # Eq. 18 with a task
     ("loop", ("corl.loop",)),  # ask, roll out, tell
-    ("learner", ("corl.learner", "corl.speculation", "corl.direct")),  # Algorithm 1 (and its speculation); the methods over w
+    ("learner", ("corl.learner", "corl.speculation", "corl.direct", "corl.parallel")),  # Algorithm 1 (its speculation, K trials out); the methods over w
     ("settings", ("corl.settings",)),  # what a task gives the methods
     ("methods", ("corl.methods",)),  # a learner by name
     ("tasks", ("corl.tasks",)),  # the synthetic benchmark, the door, tasks by name
     ("store", ("corl.store",)),  # the SQLite run store
     ("contexts", ("corl.contexts",)),  # one skill, many scenes: GPs over (theta, c), Skill.policy(c)
     ("session", ("corl.session",)),  # a learner bound to the store, exact resume
+    ("fleet", ("corl.fleet",)),  # a stored run's trials on K worker processes (corl run --robots)
     # experiments/, by what it produces: the bricks, then what is built of them
     ("experiments.base", ("corl.experiments.backends", "corl.experiments.figures", "corl.experiments.tables")),
     ("experiments.sweep", ("corl.experiments.sweep", "corl.experiments.run_output")),  # ground truth; a run's folder
     ("experiments.studies", ("corl.experiments.synthetic", "corl.experiments.door",
-                                                       "corl.experiments.contexts")),  # Fig. 1, Fig. 3
+                                                       "corl.experiments.contexts", "corl.experiments.parallel")),  # Fig. 1, Fig. 3
     ("experiments.html", ("corl.experiments.html",)),  # `corl report`
     ("serve", ("corl.serve",)),  # `corl serve`: the learner over HTTP, the live dashboard
     ("experiments", ("corl.experiments",)),  # the package, and the old path of corl.methods

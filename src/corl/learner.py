@@ -470,6 +470,11 @@ class CORL:
             if cfg.theta_step_stop and np.linalg.norm(theta - previous) < cfg.eps_theta:
                 break  # until ||theta(d+1) - theta(d)|| < eps_theta
             previous = theta
+        return self._step_end(optimizer, candidates, w_star, theta_star, r_star, data)
+
+    def _step_end(self, optimizer, candidates, w_star, theta_star, r_star, data):
+        """The end of a black-box step: why it stopped, and theta* from its ``candidates`` (w, theta, R)."""
+        cfg, task = self.config, self.task
         if optimizer.done:
             self.rl_stop_reason = optimizer.stop_reason
         else:  # the learner stopped it: the run's budget, or Alg. 1's ||theta(d+1) - theta(d)|| < eps_theta

@@ -23,6 +23,7 @@ from typing import Callable
 
 import numpy as np
 
+from corl import checks
 from corl.errors import CorlError, DemonstrationFailedError, InputError, StateError, TaskError
 from corl.loop import drive
 from corl.problem import Outcome, Proposal, Task, task_error
@@ -32,13 +33,21 @@ from corl.store.resume import way_on
 __all__ = ["StoredRun", "trajectory_of", "check_rate", "check_context", "MAX_RATE_HZ"]
 
 
-def _build(task: Task, method: str, seed: int, corl_overrides: dict | None = None):
-    """The learner; ``corl_overrides`` replace fields of the task's CORLConfig (``--rollout-every-step``)."""
+def _build(task: Task, method: str, seed: int, corl_overrides: dict | None = None, robots: int = 1):
+    """The learner; ``corl_overrides`` replace fields of the task's CORLConfig (``--rollout-every-step``);
+    ``robots`` K > 1: Algorithm 1 with up to K trials out (:class:`corl.parallel.ParallelCORL`)."""
+    from corl.learner import CORL
     from corl.methods import make_method
+    from corl.parallel import ParallelCORL
 
-    if not corl_overrides:
-        return make_method(method, task, seed=seed)
-    return make_method(method, task, seed=seed, settings=_settings(task, corl_overrides))
+    learner = make_method(method, task, seed=seed, **({"settings": _settings(task, corl_overrides)}
+                                                       if corl_overrides else {}))
+    if robots == 1:
+        return learner
+    if not isinstance(learner, CORL):
+        raise InputError(f"several robots (--robots {robots}) share Algorithm 1's black-box step, and method "
+                         f"'{method}' searches w without it; choose CORL (or CORL+PIBU, ...), or one robot")
+    return ParallelCORL(learner.task, learner.optimizer_factory, learner.config, seed=seed, robots=robots)
 
 
 def _settings(task: Task, corl_overrides: dict | None):
@@ -106,7 +115,7 @@ class StoredRun:
     @classmethod
     def new(cls, task: Task, *, task_spec: str, method: str, seed: int,
             corl_overrides: dict | None = None, context=None, learned_from: RunStore | None = None,
-            skill: dict | None = None) -> "StoredRun":
+            skill: dict | None = None, robots: int = 1) -> "StoredRun":
         """A new run of ``method`` on ``task``, in no store yet (:meth:`attach` creates it there).
 
         ``task_spec`` is how the command line named the task; ``corl_overrides`` (e.g.
@@ -115,7 +124,8 @@ class StoredRun:
         ``context`` (k,): learn in that scene from what the runs of ``learned_from`` (the store it
         will be attached to, read-only) taught (:mod:`corl.contexts`); the run records its context.
         ``skill``: settings of the skill it starts from (``{"p_min": 0.9}``, :class:`corl.contexts.Skill`),
-        stored with the run (``config["skill"]``) and applied again when it is reopened.
+        stored with the run (``config["skill"]``) and applied again when it is reopened. ``robots`` K > 1:
+        up to K trials out at once (``config["robots"]``; :meth:`try_ask`, ``tell(outcome, index)``).
         A :class:`corl.tasks.noisy.NoisyTask` records its sensors (``config["noise"]``); reopening the
         run takes the task as given, so wrap it in the same sensors again (``corl run --resume`` does).
         """
@@ -123,6 +133,10 @@ class StoredRun:
         from corl.tasks.noisy import NoisyTask
 
         upto: dict = {}
+        robots = checks.integer("robots", robots, low=1)
+        if robots > 1 and context is not None:
+            raise InputError("several robots (--robots) learn one scene; a run in a context (--context) has one robot "
+                             "for now: drop one of them")
         if context is not None:
             from corl.contexts import context_task, snapshot
 
@@ -132,8 +146,10 @@ class StoredRun:
         elif skill:
             raise InputError("skill settings (--p-min) apply to a run in a context: add --context, or drop them")
         else:
-            learner = _build(task, method, seed, corl_overrides)
+            learner = _build(task, method, seed, corl_overrides, robots)
         config = {"task_spec": task_spec, "task_name": task.name}
+        if robots > 1:
+            config["robots"] = robots
         if corl_overrides:
             config["corl_overrides"] = dict(corl_overrides)
         if isinstance(task, NoisyTask):  # the sensors the trials are read through (corl run --return-noise)
@@ -183,7 +199,7 @@ class StoredRun:
                                         check_context(task, info.config["context"]), store, upto,
                                         info.config.get("skill"))
         else:
-            learner = _build(task, info.method, seed, info.config.get("corl_overrides"))
+            learner = _build(task, info.method, seed, info.config.get("corl_overrides"), info.config.get("robots", 1))
         ended = store.end(info.id)
         try:
             replay(learner, store, info.id)
@@ -212,6 +228,29 @@ class StoredRun:
     def ask(self) -> Proposal:
         return self.hand_out(self.learner.ask())
 
+    def try_ask(self) -> Proposal | None:
+        """The next trial, committed and handed out, or None while none can go out before a tell (several
+        robots: :meth:`corl.parallel.ParallelCORL.try_ask`; that it had none is noted too, :mod:`corl.store.meta`)."""
+        try_ask = getattr(self.learner, "try_ask", None)
+        if try_ask is None:
+            return None if self.learner.done else self.ask()
+        proposal = try_ask()
+        if proposal is None:
+            self.store.note_wait(self.run_id)
+            if self.learner.done:  # Algorithm 1 ended as it was asked for its next trial
+                self.store.set_status(self.run_id, RunStatus.FINISHED)
+            return None
+        return self.hand_out(proposal)
+
+    @property
+    def pending(self) -> list[Proposal]:
+        """The trials handed out and not told yet, in index order (a resumed run's included)."""
+        out = getattr(self.learner, "pending", None)
+        if isinstance(out, dict):
+            return [out[i] for i in sorted(out)]
+        record = self.store.pending(self.run_id) if self.store is not None else None
+        return [] if record is None else [record.proposal]
+
     def hand_out(self, proposal: Proposal) -> Proposal:
         """Commit ``proposal``, which ``learner.ask()`` returned, before it is handed out."""
         t0 = time.perf_counter()
@@ -219,23 +258,30 @@ class StoredRun:
         self.commit_seconds = time.perf_counter() - t0
         return proposal
 
-    def check(self, outcome: Outcome):
-        """The pending trial ``outcome`` answers, or what :meth:`tell` would refuse; writes nothing."""
+    def check(self, outcome: Outcome, index: int | None = None):
+        """The pending trial ``outcome`` answers (trial ``index``; may be left out while one is pending),
+        or what :meth:`tell` would refuse; writes nothing."""
         if not isinstance(outcome, Outcome):
             raise InputError(f"tell() needs a corl.Outcome, got {type(outcome).__name__}")
-        pending = self.store.pending(self.run_id)
-        if pending is None:
+        out = self.store.pending_trials(self.run_id)
+        if not out:
             raise StateError("there is no pending trial to tell: run 'corl ask' first")
+        if index is None and len(out) > 1:
+            raise StateError(f"trials {[r.proposal.index for r in out]} are pending: name the one this outcome answers")
+        pending = out[-1] if index is None else next((r for r in out if r.proposal.index == index), None)
+        if pending is None:
+            raise StateError(f"trial {index} is not pending (pending: {[r.proposal.index for r in out]}); "
+                             "each trial is told once")
         _check_outcome(self.learner, pending.proposal, outcome)
         return pending
 
-    def tell(self, outcome: Outcome) -> None:
-        """Commit the outcome of the pending trial, then tell the learner.
+    def tell(self, outcome: Outcome, index: int | None = None) -> None:
+        """Commit the outcome of pending trial ``index`` (may be left out while one is pending), then tell the learner.
 
         An outcome the learner would refuse is refused before anything is written (:meth:`check`):
         a failed demonstration (Algorithm 1 needs a successful one) leaves the store as it was.
         """
-        pending = self.check(outcome)
+        pending = self.check(outcome, index)
         settle = getattr(type(self.learner), "settle", None)  # a speculation ends first: store and learner
         if settle is not None:                                  # move on together
             settle(self.learner)
@@ -243,7 +289,10 @@ class StoredRun:
         self.store.add_outcome(self.run_id, pending.index, outcome)  # committed before the learner moves on
         self.commit_seconds = time.perf_counter() - t0
         try:
-            self.learner.tell(outcome)
+            if getattr(self.learner, "try_ask", None) is None:
+                self.learner.tell(outcome)
+            else:
+                self.learner.tell(outcome, pending.proposal.index)
         except Exception as exc:
             error = None if isinstance(exc, CorlError) else task_error(exc, pending.index)
             if error is None:  # corl's own: the learner has ended

@@ -75,7 +75,7 @@ def test_a_failure_where_the_model_was_sure_is_tried_again_and_leaves_no_hole():
     flipped = False
     while not opt.done:
         x = opt.ask()
-        p = opt._asked_p[1] if opt._asked_p is not None else 0.0
+        p = opt._asked_p[-1][1] if opt._asked_p else 0.0
         if not flipped and p >= P_SURPRISE:  # one true success read as a failure, where g_S was sure
             opt.tell(x, Outcome(False))
             flipped, where = True, x.copy()

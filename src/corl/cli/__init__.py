@@ -1,7 +1,7 @@
 """The ``corl`` command line: learning runs and benchmarks.
 
 One module per group of commands, registered here in the order ``corl --help`` lists them:
-:mod:`~corl.cli.bench` (``bench synthetic``, ``bench door``, ``bench contexts``, ``sweep``), :mod:`~corl.cli.learn`
+:mod:`~corl.cli.bench` (``bench synthetic``, ``bench door``, ``bench contexts``, ``bench parallel``, ``sweep``), :mod:`~corl.cli.learn`
 (``run``, ``ask``, ``tell``), :mod:`~corl.cli.serve` (``serve``: the learner over HTTP), :mod:`~corl.cli.skill` (``policy``: a skill learned across contexts)
 and :mod:`~corl.cli.store` (``status``, ``runs``, ``export``, ``report``); :mod:`~corl.cli.common`
 holds what they share.
@@ -28,7 +28,7 @@ bench_app = typer.Typer(no_args_is_help=True, help="Benchmarks that reproduce th
 app.add_typer(bench_app, name="bench")
 
 for group, name, command in ((bench_app, "synthetic", bench.bench_synthetic), (bench_app, "door", bench.bench_door),
-                             (bench_app, "contexts", bench.bench_contexts),
+                             (bench_app, "contexts", bench.bench_contexts), (bench_app, "parallel", bench.bench_parallel),
                              (app, "sweep", bench.sweep), (app, "run", learn.run), (app, "ask", learn.ask),
                              (app, "tell", learn.tell), (app, "serve", serve.serve), (app, "policy", skill.policy), (app, "status", store.status),
                              (app, "runs", store.runs), (app, "export", store.export), (app, "report", store.report)):

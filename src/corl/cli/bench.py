@@ -15,7 +15,7 @@ from corl.cli.common import (
     write_json,
 )
 
-__all__ = ["bench_synthetic", "bench_door", "bench_contexts", "sweep"]
+__all__ = ["bench_synthetic", "bench_door", "bench_contexts", "bench_parallel", "sweep"]
 
 
 def bench_synthetic(
@@ -242,3 +242,56 @@ def bench_contexts(
     typer.echo(contexts_table(payload))
     typer.echo(f"\n{train} training and {test} test contexts in {payload['wall_seconds']:.1f} s; wrote "
                f"{out / 'contexts.json'}, {figure} and the skill's store {out / 'train.corl'}")
+
+
+def bench_parallel(
+    task: str = typer.Argument(..., help="'synthetic', 'door', or an import path 'package.module:make_task'"),
+    robots: int = typer.Option(4, help="K, the robots of the second run (the first has one)"),
+    trial_seconds: float = typer.Option(0.5, help="robot time each trial also takes, in seconds"),
+    seed: int = typer.Option(0, help="seed of the task and the learner"),
+    backend: str = typer.Option("local", help="where the trials run: local (worker processes); Ray and Dask are "
+                                               "not done"),
+    out: Path = typer.Option(Path("results/parallel"), help="output folder for parallel.json and parallel.png"),
+    rollout_every_step: Optional[bool] = typer.Option(
+        None, "--rollout-every-step/--no-rollout-every-step", help="as corl run (default: the task's CORLConfig)"),
+    quiet: bool = QUIET, json_out: bool = JSON_OUT, log: bool = LOG,
+) -> None:
+    """One robot against K: the same CORL learning, each trial taking S more seconds; writes parallel.json."""
+    import math
+
+    from corl.errors import CorlError
+    from corl.experiments.parallel import parallel_bench, plot_parallel
+    from corl.fleet import check_backend
+
+    check_args(task=("TASK", task), seed=("--seed", seed), folder=("--out", out))
+    if not isinstance(robots, int) or not 1 <= robots <= 64:
+        fail(f"--robots must be an integer in [1, 64], got {robots}")
+    if not (math.isfinite(trial_seconds) and 0 <= trial_seconds <= 3600):
+        fail(f"--trial-seconds must be a number of seconds in [0, 3600], got {trial_seconds}")
+    try:
+        check_backend(backend)
+    except CorlError as exc:
+        fail(str(exc))
+    NEW_PATHS.track(out)
+    make_folder("--out", out)
+    overrides = None if rollout_every_step is None else {"rollout_every_step": rollout_every_step}
+    with progress_tracker("bench parallel", quiet=quiet, log=log, json_out=json_out) as tracker:
+        def tick(k, p, o, session):
+            best = session.best
+            tracker.update(f"{k} robot{'' if k == 1 else 's'}", done=len(session.history), total=None,
+                           failures=int(not o.success), best=None if best is None else best.return_,
+                           note=f"trial {p.index} {p.step}")
+
+        try:
+            payload = parallel_bench(task, robots, trial_seconds, seed, out, overrides=overrides, backend=backend,
+                                     progress=tick)
+        except CorlError as exc:
+            fail(str(exc))
+    payload["files"] = {"json": str(out / "parallel.json"), "figure": str(plot_parallel(payload, out / "parallel.png"))}
+    write_json(out / "parallel.json", payload)
+    if json_out:
+        return print_json({k: v for k, v in payload.items()})
+    for k, r in payload["runs"].items():
+        typer.echo(f"{k} robot{'' if k == '1' else 's'}: wall {r['wall_s']:.1f} s, {r['trials']} trials, "
+                   f"{r['failures']} failures, final return {r['final_return']}, out at once {r['out_at_once']}")
+    typer.echo(f"wall time {payload['wall_ratio']:.2f}x one robot's; wrote {out / 'parallel.json'}")

@@ -45,6 +45,10 @@ def run(
     flip: Optional[str] = typer.Option(
         None, "--flip", help="try the task with a flaky success sensor: the probability in [0, 0.5) that a trial's "
                              "success is reported flipped (never the demonstration's; default 0)"),
+    robots: Optional[int] = typer.Option(
+        None, "--robots", help="K simulated robots: up to K trials out at once, each in a worker process "
+                               "(CORL's black-box step; default 1)"),
+    backend: str = typer.Option("local", help="where --robots run: local (processes); Ray and Dask are not done"),
     end_at_error: bool = typer.Option(
         False, "--end-at-error", help="with --resume: where the task's code raised on the run's last told trial, "
                                       "end the run there (every trial kept, none run) and write its summary"),
@@ -63,6 +67,11 @@ def run(
         fail(f"unknown method '{method}'; choose from {', '.join(METHODS)}")
     if end_at_error and not resume:
         fail("--end-at-error ends the run being resumed; add --resume")
+    if robots is not None and not 1 <= robots <= 64:
+        fail(f"--robots must be an integer in [1, 64], got {robots}")
+    if (robots or 1) > 1 and (return_noise is not None or flip is not None or context is not None):
+        fail("--robots with --return-noise, --flip or --context is not done (one robot per scene, sensors read "
+             "in each worker): drop one of them")
     skill = skill_settings(p_min, context=context)
     try:
         sensors = _sensor_flags(return_noise, flip)
@@ -77,7 +86,11 @@ def run(
     try:  # every check, the task and the learner (replayed) before the store is opened for writing
         the_task, session, seen = _run_to_continue(task, store_path, resume=resume, method=method, seed=seed,
                                                    rollout_every_step=rollout_every_step, quiet=quiet, context=context,
-                                                   sensors=sensors, end_at_error=end_at_error, skill=skill)
+                                                   sensors=sensors, end_at_error=end_at_error, skill=skill,
+                                                   robots=robots)
+        from corl.fleet import check_backend
+
+        check_backend(backend)
         if end_at_error and session.ended is None:
             fail(f"run {session.run_id} in {store_path} resumes without an error of the task's code, so there is "
                  "nothing to end it at: drop --end-at-error to go on with it")
@@ -113,7 +126,12 @@ def run(
                 tracker.update("trials", done=len(session.history), total=budget, best=best(), note="resumed",
                                failures=sum(not o.success for _, o in session.history))
             try:
-                session.run(the_task, callback=tick)
+                if info.config.get("robots", 1) > 1:
+                    from corl.fleet import run_fleet
+
+                    run_fleet(session, the_task, robots=info.config["robots"], backend=backend, callback=tick)
+                else:
+                    session.run(the_task, callback=tick)
                 tracker.update("trials", done=len(session.history), total=len(session.history), note="finished")
             except TaskError as exc:  # says what the store keeps and the way on
                 fail(str(exc))
@@ -379,7 +397,8 @@ def _with_sensors(the_task, sensors: dict | None, seed: int):
 
 
 def _run_to_continue(task: str, store_path: Path, *, resume: bool, method, seed, rollout_every_step, quiet: bool,
-                     context=None, sensors: dict | None = None, end_at_error: bool = False, skill=None):
+                     context=None, sensors: dict | None = None, end_at_error: bool = False, skill=None,
+                     robots: int | None = None):
     """``(task in the run's scene, StoredRun, seen)`` of ``corl run``: the store's latest run replayed from a
     read-only open (``--resume``), or a new run in no store yet; nothing is written (see StoredRun.attach).
     ``seen``: for a new run in a context, ``(id of the latest run it learned up to,)``; else None.
@@ -405,13 +424,14 @@ def _run_to_continue(task: str, store_path: Path, *, resume: bool, method, seed,
             return scene_of(the_task, c), _new_in_context(the_task, task, store_path, method=method, seed=seed,
                                                           context=c, overrides=overrides, skill=skill), \
                 (latest and latest.id,)
-        method = method or _default_method(task)
+        method = method or ("CORL" if (robots or 1) > 1 else _default_method(task))  # SEIB keeps K apart
         return the_task, StoredRun.new(the_task, task_spec=task, method=method, seed=seed,
-                                       corl_overrides=overrides), None
+                                       corl_overrides=overrides, robots=robots or 1), None
     stored_every = info.config.get("corl_overrides", {}).get("rollout_every_step")
     stored_sensors = info.config.get("noise") or {}  # a run without sensors reads exactly: 0 and 0
     _refuse_other_flags(info, ("--method", method, info.method), ("--seed", seed, info.seed),
                         ("--[no-]rollout-every-step", rollout_every_step, stored_every),
+                        ("--robots", robots, info.config.get("robots", 1)),
                         *((f"--{k.replace('_', '-')}", v, stored_sensors.get(k, 0.0)) for k, v in sensors.items()),
                         *_skill_flags(info, skill))
     the_task = _with_sensors(load_task(task, seed=int(info.seed or 0)), stored_sensors, int(info.seed or 0))

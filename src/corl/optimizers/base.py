@@ -23,6 +23,9 @@ The stopping contract
   since, is refused (:class:`~corl.errors.StateError`, nothing recorded). A point that answers
   nothing asked is data and always welcome (a demonstration, data told up front, another
   method's trials).
+* ``max_pending = K > 1`` (K robots): ``ask()`` hands out a new point while fewer than K are out, each
+  decided with the others pending (:attr:`pending_`); tells come in any order. A repeat of a pending
+  point, a stop or the budget while trials are out is no trial yet: :attr:`ready` is False until a tell.
 * Returns reach the models in units where they cannot overflow: returns beyond
   :data:`MODEL_RANGE` in magnitude are divided by a power of two first (:func:`model_scale`), so
   any finite return, 1e300 included, keeps the method asking.
@@ -263,10 +266,41 @@ class BlackBoxOptimizer(ABC):
         self._answered: np.ndarray | None = None  # the handed-out point told last, until the next ask()
         self._stop_reason: StopReason | None = None
         self._decided = False
+        self._max_pending, self._out, self._told_out = 1, [], []  # K > 1: (point, confirming) out; told since ask
+
+
+    def _set_max_pending(self, k: int) -> None:
+        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 1:
+            raise InputError(f"max_pending (trials out at once, one per robot) must be an integer >= 1, got {k!r}")
+        if self._out or self._handed_out:
+            raise StateError(f"{self.name}: set max_pending before the first ask, not while trials are pending")
+        self._max_pending, self._decided = int(k), False
+
+    max_pending = property(lambda self: self._max_pending, _set_max_pending,
+                           doc="How many trials may be pending at once (K robots); 1 by default, set before the first ask")
+
+    @property
+    def pending_(self) -> np.ndarray:
+        """(p, m) the points handed out by ask() and not told yet (max_pending > 1; else (0, m))."""
+        return np.array([x for x, _ in self._out]).reshape(len(self._out), self.bounds.dim)
+
+    @property
+    def ready(self) -> bool:
+        """A new trial can be asked now: not done, fewer than ``max_pending`` out and a point to propose."""
+        self._decide()
+        if self._max_pending == 1:
+            return self._stop_reason is None and not self._handed_out
+        return self._proposal is not None and len(self._out) < self._max_pending
 
     # -- the interface -------------------------------------------------------------------------
     def ask(self) -> np.ndarray:
-        """Next point to evaluate, (m,); the same point until it is told. Raises :class:`StateError` when :attr:`done`."""
+        """Next point to evaluate, (m,); the same point until it is told. Raises :class:`StateError` when :attr:`done`.
+
+        With ``max_pending > 1``, a new point each call while fewer than ``max_pending`` are out
+        (:attr:`ready`); StateError when none can be handed out before a tell.
+        """
+        if self._max_pending > 1:
+            return self._ask_another()
         self._decide()
         if self._stop_reason is not None:
             raise StateError(f"{self.name} has stopped ({self._stop_reason.value}): {_EXPLAIN[self._stop_reason]}. "
@@ -284,21 +318,14 @@ class BlackBoxOptimizer(ABC):
         _told(x, outcome)
         x = as_point(x, self.bounds, name=self.name)
         outcome = as_outcome(outcome)
+        if self._max_pending > 1:
+            return self._tell_any(x, outcome)
         asked = self._handed_out and self._proposal is not None and self._answers(x, self._proposal)
         if self._answered is not None and not asked and self._answers(x, self._answered):
             raise StateError(f"tell() without a pending ask(): {self.name} was told the outcome of "
                              f"{np.array2string(self._answered, precision=6)} already and nothing was asked "
                              "since; call ask() first (each asked point is told once)")
-        r = np.nan if outcome.return_ is None else float(outcome.return_)
-        self.X_ = np.vstack([self.X_, x])
-        self.success_ = np.append(self.success_, outcome.success)
-        self.returns_ = np.append(self.returns_, r)
-        if self.start is not None and self._answers(x, self.start) and not outcome.success:
-            self._start_failures += 1
-        if self._start_open and self._answers(x, self.start):
-            # a failed start is asked again (start_retries) while nothing has succeeded yet
-            retries = self.start_retries if self.needs_success else 0  # only a safe method refuses a failed start
-            self._start_open = not outcome.success and self._start_failures <= retries
+        self._record(x, outcome)
         if asked:
             self._answered = self._proposal  # told once: a second answer before the next ask() is refused
         answered = self._proposal is not None and self._answers(x, self._proposal)
@@ -310,6 +337,50 @@ class BlackBoxOptimizer(ABC):
             self._proposal, self._handed_out = None, False
         self._decided, self._stop_reason = self._proposal is not None, None
         self._observe(x, outcome)
+
+    def _record(self, x: np.ndarray, outcome: Outcome) -> None:  # the told point joins the data (and the start's count)
+        r = np.nan if outcome.return_ is None else float(outcome.return_)
+        self.X_ = np.vstack([self.X_, x])
+        self.success_ = np.append(self.success_, outcome.success)
+        self.returns_ = np.append(self.returns_, r)
+        if self.start is not None and self._answers(x, self.start) and not outcome.success:
+            self._start_failures += 1
+        if self._start_open and self._answers(x, self.start):
+            # a failed start is asked again (start_retries) while nothing has succeeded yet
+            retries = self.start_retries if self.needs_success else 0  # only a safe method refuses a failed start
+            self._start_open = not outcome.success and self._start_failures <= retries
+
+    # -- several trials out at once (max_pending > 1) ------------------------------------------
+    def _ask_another(self) -> np.ndarray:
+        self._decide()
+        if self._stop_reason is not None:
+            raise StateError(f"{self.name} has stopped ({self._stop_reason.value}): {_EXPLAIN[self._stop_reason]}. "
+                             "Check .done before asking; read .best for the result")
+        if self._proposal is None or len(self._out) >= self._max_pending:
+            raise StateError(f"{self.name} has {len(self._out)} trials pending and no other to hand out before one "
+                             "of them is told (check .ready before asking)")
+        x = self._proposal
+        self._out.append((x.copy(), self._confirming))
+        self._proposal, self._decided, self._told_out = None, False, []  # the next one, given this one pending
+        return x.copy()
+
+    def _tell_any(self, x: np.ndarray, outcome: Outcome) -> None:
+        hit = next((i for i, (p, _) in enumerate(self._out) if self._answers(x, p)), None)
+        if hit is None and any(self._answers(x, p) for p in self._told_out):
+            raise StateError(f"{self.name} was told the outcome of {np.array2string(x, precision=6)} already and "
+                             "it is not pending again; each asked point is told once")
+        self._record(x, outcome)
+        if hit is not None:
+            point, confirming = self._out.pop(hit)
+            self._told_out.append(point)
+            self._confirmations += int(confirming)
+        if self._proposal is not None:  # decided from older data, not handed out: decide again
+            self._withdraw(self._proposal)
+        self._proposal, self._decided, self._stop_reason = None, False, None
+        self._observe(x, outcome)
+
+    def _spent(self) -> int:  # trials told plus trials pending: what the budget has committed
+        return self.n_evals + len(self._out)
 
     @property
     def done(self) -> bool:
@@ -352,7 +423,7 @@ class BlackBoxOptimizer(ABC):
             return
         left = self.confirm - self._confirmations  # confirmation trials still to run (``confirm``)
         self._confirming = False
-        if self.n_evals >= self.max_evals:
+        if self._spent() >= self.max_evals:
             decision = StopReason.BUDGET
         elif self._start_open and not np.any(self.success_):
             decision = self.start
@@ -360,7 +431,7 @@ class BlackBoxOptimizer(ABC):
             decision = StopReason.NO_SAFE_POINT  # checked before any model is fitted
         elif self._confirm_reason is not None and left <= 0:
             decision = self._confirm_reason  # confirmed: the stop the search had reached
-        elif left > 0 and (self._confirm_reason is not None or self.n_evals >= self.max_evals - left):
+        elif left > 0 and (self._confirm_reason is not None or self._spent() >= self.max_evals - left):
             self._confirm_reason = self._confirm_reason or StopReason.BUDGET  # the last trials confirm
             decision, self._confirming = self._best_theta(), True
         else:
@@ -369,6 +440,9 @@ class BlackBoxOptimizer(ABC):
                 self._confirm_reason, decision, self._confirming = decision, self._best_theta(), True
         if decision is None:
             decision = StopReason.CONVERGED
+        if self._out and (isinstance(decision, StopReason) or self._repeats_pending(decision)):
+            self._stop_reason, self._proposal, self._decided = None, None, True  # no trial until a tell
+            return
         if isinstance(decision, StopReason):
             self._stop_reason, self._proposal = decision, None
         else:
@@ -401,6 +475,10 @@ class BlackBoxOptimizer(ABC):
         if keep.all():
             return self.X_, success
         return self.X_[keep], success[keep]
+
+    def _repeats_pending(self, x) -> bool:  # x (m,) answers a pending point: the same motion as a trial out
+        x = self.bounds.clip(np.asarray(x, dtype=float).reshape(self.bounds.dim))
+        return any(self._answers(x, p) for p, _ in self._out)
 
     def _rechecked(self) -> list[np.ndarray]:
         """Points tried again on purpose after a failed reading (m,) each: the start, once it failed."""

@@ -7,9 +7,8 @@ in unit-box units, :mod:`corl.gp.fitting`, warm-started from the previous ask), 
 with the boundary gate looking beyond the band (``SEIB(beyond=True)``: may R be higher a length
 scale further out, where no failure is known?), then looking far (``SEIB(beyond=True, far=True)``:
 up to four length scales out, from band points well clear of every failure: across a valley of R;
-with ``SEIBConfig.far_lengthscale``, on a g_S refitted with that length-scale prior median)
-and, with few successes, with the gate open. It needs one known success
-(the start) before its first ask: a safe method never guesses a first point.
+with ``SEIBConfig.far_lengthscale``, on a g_S refitted with that length-scale prior median) and, with
+few successes, with the gate open. It needs one known success (the start) before its first ask.
 """
 
 from __future__ import annotations
@@ -28,6 +27,7 @@ from corl.gp.fitting import fit_classifier
 from corl.optimizers.base import StopReason, model_scale
 from corl.optimizers.bo import BOConfig, StopRule, _BayesOpt, _stop
 from corl.optimizers.gpconfig import FITTED_CLASSIFIER, FITTED_REGRESSION
+from corl.optimizers.pending import apart
 from corl.problem import Bounds
 
 __all__ = ["SafeBOOptimizer", "SAFE_BO_CONFIG", "LearnersBest", "return_scale", "P_TRUSTED"]
@@ -170,7 +170,7 @@ class SafeBOOptimizer(_BayesOpt):
         seib.check_classifier(config.classifier)
         self._models = None
         self._best_cache = None  # (len(X_), LearnersBest)
-        self._asked_p = None  # (x, g_S's success probability there) of the latest proposal
+        self._asked_p: list = []  # (x, g_S's success probability there) of the proposals not yet told
         self._recheck = None  # a point to try again: it failed where g_S was sure of success
         self._checks: list[np.ndarray] = []  # points tried again after a surprising failure
         self._doubts: list[np.ndarray] = []  # successes in doubt tried again before a stop (their failures count)
@@ -268,12 +268,11 @@ class SafeBOOptimizer(_BayesOpt):
     # -- a surprising failure is checked once ----------------------------------------------------
     def _observe(self, x: np.ndarray, outcome) -> None:
         """A failure where g_S was sure of success (p >= P_SURPRISE when proposed) is tried once more."""
-        asked = self._asked_p
-        if asked is not None and self.recheck_failures and not outcome.success and self._answers(x, asked[0]) \
-                and asked[1] >= P_SURPRISE \
+        asked = next((a for a in self._asked_p if self._answers(x, a[0])), None)
+        if asked is not None and self.recheck_failures and not outcome.success and asked[1] >= P_SURPRISE \
                 and not any(self._answers(x, c) for c in self._checks):
             self._recheck = np.array(asked[0], dtype=float)
-        self._asked_p = None
+        self._asked_p = [a for a in self._asked_p if a is not asked and any(self._answers(a[0], q) for q in self.pending_)]
 
     def _rechecked(self) -> list[np.ndarray]:
         return super()._rechecked() + self._checks
@@ -283,7 +282,7 @@ class SafeBOOptimizer(_BayesOpt):
         if isinstance(x, np.ndarray):
             regression, classifier = self._models[1:] if self._models is not None else (None, None)
             if classifier is not None and self._models[0] == len(self.X_):
-                self._asked_p = (x.copy(), float(classifier.predict_proba(x[None])[0]))
+                self._asked_p.append((x.copy(), float(classifier.predict_proba(x[None])[0])))
         return x
 
     def _propose_next(self) -> np.ndarray | StopReason:
@@ -291,7 +290,7 @@ class SafeBOOptimizer(_BayesOpt):
             x, self._recheck = self._recheck, None
             self._checks.append(x.copy())
             return x
-        if self.n_evals == self.max_evals - 1 and not self.confirm:  # the budget's last trial: a best in doubt first
+        if self._spent() == self.max_evals - 1 and not self.confirm:  # the budget's last trial: a best in doubt first
             doubted = self._doubted()
             if doubted is not None:
                 self._doubts.append(doubted.copy())
@@ -303,7 +302,7 @@ class SafeBOOptimizer(_BayesOpt):
             decided = stopping  # a repeat confirmed a success in doubt: the stop it came before stands
         else:  # (a repeat that failed showed a wrong reading: the data changed, decide again)
             decided = self._seib_decision()
-        if isinstance(decided, StopReason):
+        if isinstance(decided, StopReason) and not len(self.pending_):  # trials out: no repeat or spend, wait
             doubted = self._doubted()
             if doubted is not None:  # tried once more before the run ends on a best that may be a wrong reading
                 self._doubts.append(doubted.copy())
@@ -313,7 +312,7 @@ class SafeBOOptimizer(_BayesOpt):
             if resting is not None:  # a stop that one failed reading decides is checked once (label_noise)
                 self._checks.append(resting.copy())
                 return resting
-        if isinstance(decided, StopReason) and self.spend_budget:
+        if isinstance(decided, StopReason) and self.spend_budget and not len(self.pending_):
             return self._spend()
         return decided
 
@@ -388,7 +387,7 @@ class SafeBOOptimizer(_BayesOpt):
         """Where g_R is most uncertain among points with success probability at least ``p_min``."""
         if regression is None:
             return self.X_[0], -np.inf
-        self.last_acquisition = self._guarded(_Uncertainty(regression, classifier, p_min))
+        self.last_acquisition = self._shaped(_Uncertainty(regression, classifier, p_min))
         return maximize(self.last_acquisition, self.bounds, rng=self.rng, config=self._maximizer, extra=self.X_)
 
     def _repeats(self, x) -> bool:
@@ -412,13 +411,14 @@ class SafeBOOptimizer(_BayesOpt):
 
     def _maximize(self, **how) -> tuple[np.ndarray, float]:
         """Maximise ``SEIB(**how)`` (:meth:`_acquisition`), kept as ``last_acquisition``: ``(x, value)``."""
-        self.last_acquisition = self._guarded(self._acquisition(**how))
+        self.last_acquisition = self._shaped(self._acquisition(**how))
         return maximize(self.last_acquisition, self.bounds, rng=self.rng, config=self._maximizer, extra=self.X_)
 
-    def _guarded(self, acquisition):
-        if self.guard is None:
-            return acquisition
-        return Guarded(acquisition, self.guard.allowed(*self._safety_data()))
+    def _shaped(self, acquisition):
+        """``acquisition`` masked by the scene's guard, kept apart from pending trials (:func:`apart`)."""
+        if self.guard is not None:
+            acquisition = Guarded(acquisition, self.guard.allowed(*self._safety_data()))
+        return apart(acquisition, self.pending_, self._models[2], self.bounds)
 
     def _stops(self, x, value) -> bool:
         return not value >= self.seib.stop_value or _stop(self.config.stop_rule, x, self.X_,

@@ -25,11 +25,14 @@ On a real robot a trial costs minutes, so the store never loses, repeats or corr
   (``corl run --resume --end-at-error``, :meth:`RunStore.set_end`) replays up to that error.
 
 A run's trials form a prefix: indices 0, 1, ..., d-1 without gaps, every outcome belongs to a
-stored proposal, and only the last trial may be pending (asked, not yet told).
+stored proposal, and only the last trial may be pending (asked, not yet told); a run with K robots
+(``config["robots"] = K``) may have up to K trials pending, told in any order, and keeps the order of
+its asks and tells (:mod:`corl.store.meta`) so that replay meets every trial as it was proposed.
 
 Schema (format 1; ``PRAGMA user_version`` and ``meta.format_version`` hold the format)
 ------------------------------------------------------------------------------------------
-meta(key, value)                  format_version, created, created_by; best:<run>, end:<run> (JSON)
+meta(key, value)                  format_version, created, created_by; best:<run>, end:<run> (JSON);
+                                  pattern:<run> (K robots: letters a, t, w)
 runs(id, created, task, method, seed, config, versions, status)    config, versions: JSON
 trials(run_id, trial_index, step, round, w, w_shape, theta, theta_shape, proposed_at)
 outcomes(run_id, trial_index, success, return_, info, told_at)     return_ NULL when unobserved

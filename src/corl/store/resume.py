@@ -88,7 +88,8 @@ def replay(learner: AskTellLearner, store: RunStore, run_id: int) -> int:
     :data:`RESUME_RTOL`, in which case the learner continues from the stored values); a told
     trial is then told to the learner again. A final pending trial stays pending: the learner has
     asked it, so its next ``ask()`` returns it again and the loop executes it as if nothing had
-    happened.
+    happened. A run with K robots replays its asks, tells and waits in their stored order
+    (:mod:`corl.store.meta`): its pending trials stay pending in the learner, each told when it comes.
 
     The learner must be deterministic given its seed and freshly constructed with the run's task,
     method, seed and configuration. Returns the number of outcomes told. Raises
@@ -98,48 +99,97 @@ def replay(learner: AskTellLearner, store: RunStore, run_id: int) -> int:
     """
     records = store.trials(run_id)
     end = store.end(run_id)
+    pattern = store.pattern(run_id)
+    if pattern is not None:
+        return _replay_pattern(learner, store, run_id, records, pattern, end)
     told = 0
     for i, record in enumerate(records):
-        problem = None
-        try:
-            asked = learner.ask()
-        except CorlError as exc:
-            problem = f"the learner raised {type(exc).__name__} ({exc}) instead of proposing it"
-        except Exception as exc:
-            error = _task_failed(exc, store, run_id, records, i, "as the learner worked out")
-            if error is None:
-                raise
-            raise error from exc
-        else:
-            stored = record.proposal
-            if (asked.index, asked.step, asked.round) != (stored.index, stored.step, stored.round):
-                problem = (f"the learner proposed trial {asked.index} ({asked.step!r}, round {asked.round}), "
-                           f"the store holds trial {stored.index} ({stored.step!r}, round {stored.round})")
-            else:
-                problem_w, moved_w = _compare(asked.w, stored.w, "w")
-                problem_theta, moved_theta = _compare(asked.theta, stored.theta, "theta")
-                problem = problem_w or problem_theta
-                if problem is None and (moved_w or moved_theta):
-                    problem = _adopt(asked, stored)
-        if problem is not None:
-            raise StoreError(_divergence_message(store, run_id, i, problem))
+        _ask(learner.ask, store, run_id, records, i)
         if record.outcome is None:
             if i != len(records) - 1:
                 raise StoreError(f"trial {i} of run {run_id} is pending but later trials exist; the store is damaged")
             break
-        try:
-            learner.tell(record.outcome)
-        except CorlError:
-            raise
-        except Exception as exc:
-            if end is not None and end.get("trial") == i:  # where the run was ended: the learner stops as it did
-                return told + 1
-            error = _task_failed(exc, store, run_id, records, i, "as the learner took in")
-            if error is None:
-                raise
-            raise error from exc
+        if _tell(lambda o: learner.tell(o), store, run_id, records, i, end):
+            return told + 1
         told += 1
     return told
+
+
+def _replay_pattern(learner, store: RunStore, run_id: int, records: list, pattern: str, end) -> int:
+    """:func:`replay` of a run with K robots: its asks, tells and waits in their stored order
+    (:mod:`corl.store.meta`), ``learner.try_ask()`` for an ask or a wait, ``learner.tell(outcome, index)``
+    for a tell. The trials still pending stay pending in the learner (its ``pending``)."""
+    order = store.told_order(run_id)
+    if pattern.count("a") != len(records) or pattern.count("t") != len(order):
+        raise StoreError(f"the pattern of run {run_id} names {pattern.count('a')} asks and {pattern.count('t')} tells, "
+                         f"the store holds {len(records)} trials and {len(order)} outcomes; the store is damaged")
+    asked = told = 0
+    for letter in pattern:
+        if letter == "t":
+            i = order[told]
+            if i >= asked:
+                raise StoreError(f"trial {i} of run {run_id} was told before it was asked; the store is damaged")
+            if _tell(lambda o: learner.tell(o, i), store, run_id, records, i, end):
+                return told + 1
+            told += 1
+        elif letter == "a":
+            _ask(learner.try_ask, store, run_id, records, asked)
+            asked += 1
+        else:
+            try:
+                extra = learner.try_ask()
+            except CorlError:
+                extra = None  # a learner that has finished: as the run found it
+            if extra is not None:
+                raise StoreError(_divergence_message(store, run_id, asked, f"the learner proposed trial {extra.index} "
+                                                     "where the run found none to hand out"))
+    return told
+
+
+def _ask(ask, store: RunStore, run_id: int, records: list, i: int) -> Proposal:
+    """``ask()`` must propose stored trial ``i`` (the learner continues from the stored arrays); else StoreError."""
+    problem = None
+    try:
+        asked = ask()
+    except CorlError as exc:
+        problem = f"the learner raised {type(exc).__name__} ({exc}) instead of proposing it"
+    except Exception as exc:
+        error = _task_failed(exc, store, run_id, records, i, "as the learner worked out")
+        if error is None:
+            raise
+        raise error from exc
+    else:
+        stored = records[i].proposal
+        if asked is None:
+            problem = "the learner had no trial to hand out"
+        elif (asked.index, asked.step, asked.round) != (stored.index, stored.step, stored.round):
+            problem = (f"the learner proposed trial {asked.index} ({asked.step!r}, round {asked.round}), "
+                       f"the store holds trial {stored.index} ({stored.step!r}, round {stored.round})")
+        else:
+            problem_w, moved_w = _compare(asked.w, stored.w, "w")
+            problem_theta, moved_theta = _compare(asked.theta, stored.theta, "theta")
+            problem = problem_w or problem_theta
+            if problem is None and (moved_w or moved_theta):
+                problem = _adopt(asked, stored)
+    if problem is not None:
+        raise StoreError(_divergence_message(store, run_id, i, problem))
+    return asked
+
+
+def _tell(tell, store: RunStore, run_id: int, records: list, i: int, end) -> bool:
+    """Tell the stored outcome of trial ``i``; True where the run was ended at a task error (it stops there)."""
+    try:
+        tell(records[i].outcome)
+    except CorlError:
+        raise
+    except Exception as exc:
+        if end is not None and end.get("trial") == i:  # where the run was ended: the learner stops as it did
+            return True
+        error = _task_failed(exc, store, run_id, records, i, "as the learner took in")
+        if error is None:
+            raise
+        raise error from exc
+    return False
 
 
 def _task_failed(exc: Exception, store: RunStore, run_id: int, records: list, i: int, doing: str) -> TaskError | None:

@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 import sqlite3
 from contextlib import contextmanager
@@ -15,6 +14,7 @@ from corl.problem import Outcome, Proposal
 from corl.store.export import check_export_path, write_export
 from corl.store.lock import WriterLock
 from corl.store.machine import machine_info
+from corl.store.meta import KeptByRun, note
 from corl.store.records import (
     EmptyStoreError, RunInfo, RunStatus, StoreError, TrialRecord, _as_int, _decode_array, _encode_array, _json, _load_json, _now,
 )
@@ -28,7 +28,7 @@ _BUSY_TIMEOUT_S = 5.0
 _RESTORE_HINT = "restore it from a copy or start a new store with a different --store path"
 
 
-class RunStore:
+class RunStore(KeptByRun):
     """Runs, their trials and outcomes in one SQLite file (see the docstring of :mod:`corl.store`).
 
     Parameters
@@ -294,50 +294,12 @@ class RunStore:
             self._run_status(db, run_id)
             db.execute("UPDATE runs SET status = ? WHERE id = ?", (status.value, run_id))
 
-    # -- what a run keeps beside its trials: the learner's best, how it ended ---------------------
-    def set_best(self, run_id: int, best: dict | None) -> None:
-        """Keep the learner's best of run ``run_id`` (JSON, :func:`corl.session.best_record`) for readers
-        that do not replay the run (``corl status``); written after each told trial, so a crash between
-        the two leaves it one trial behind until the run resumes."""
-        self._keep(run_id, "best", best)
-
-    def best(self, run_id: int) -> dict | None:
-        """The learner's best kept by :meth:`set_best`, or None (none kept yet, or a store from before)."""
-        return self._kept(run_id, "best")
-
-    def set_end(self, run_id: int, end: dict) -> None:
-        """Mark run ``run_id`` finished where the task's code raised (``corl run --resume --end-at-error``):
-        ``end`` holds ``trial`` (the last told one; its follow-up raised), ``member`` and ``error``."""
-        self._keep(run_id, "end", end)
-        self.set_status(run_id, RunStatus.FINISHED)
-
-    def end(self, run_id: int) -> dict | None:
-        """How run ``run_id`` was ended by :meth:`set_end`, or None (it was not)."""
-        return self._kept(run_id, "end")
-
-    def _keep(self, run_id: int, key: str, value: dict | None) -> None:
-        run_id = _as_int(run_id, what="run id")
-        text = json.dumps(value, allow_nan=False)
-        with self._transaction(f"keep the {key} of run {run_id}") as db:
-            self._run_status(db, run_id)
-            db.execute("INSERT OR REPLACE INTO meta (key, value) VALUES (?, ?)", (f"{key}:{run_id}", text))
-
-    def _kept(self, run_id: int, key: str) -> dict | None:
-        run_id = _as_int(run_id, what="run id")
-        rows = self._read("SELECT value FROM meta WHERE key = ?", (f"{key}:{run_id}",))
-        if not rows:
-            return None
-        try:
-            value = json.loads(rows[0][0])
-        except ValueError:
-            raise self._damaged(f"the {key} kept for run {run_id} is not JSON") from None
-        return value if isinstance(value, dict) else None
-
     # -- trials --------------------------------------------------------------------------------
     def add_proposal(self, run_id: int, proposal: Proposal) -> None:
         """Store a proposal before it is executed.
 
-        The index must be the run's next one and the previous trial must be told. Storing the same
+        The index must be the run's next one, and fewer trials pending than the run has robots
+        (``config["robots"]``, 1 by default: the previous trial must be told). Storing the same
         trial again with identical content (bit for bit) does nothing, so a loop that re-asks a
         pending trial after a crash can store it again; different content raises StoreError.
         """
@@ -368,14 +330,12 @@ class RunStore:
             expected = 0 if last is None else last + 1
             if index != expected:
                 raise StoreError(f"run {run_id} expects trial {expected} next, got a proposal for trial {index}")
-            if last is not None and not _holds(db, "outcomes", run_id, last):
-                raise StoreError(
-                    f"trial {last} of run {run_id} is still pending; tell its outcome before storing trial {index}"
-                )
+            self.check_room(db, run_id, last, index)
             db.execute(
                 "INSERT INTO trials (run_id, trial_index, step, round, w, w_shape, theta, theta_shape, "
                 "proposed_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)", (run_id, index, *content, _now()),
             )
+            note(db, run_id, "a")
 
     def add_outcome(self, run_id: int, index: int, outcome: Outcome) -> None:
         """Store the outcome of trial ``index``; a trial is told exactly once."""
@@ -395,6 +355,7 @@ class RunStore:
                 "VALUES (?, ?, ?, ?, ?, ?)",
                 (run_id, index, int(outcome.success), outcome.return_, info, _now()),
             )
+            note(db, run_id, "t")
 
     _TRIALS_SQL = """SELECT t.trial_index, t.step, t.round, t.w, t.w_shape, t.theta, t.theta_shape,
         t.proposed_at, o.success, o.return_, o.info, o.told_at
@@ -427,7 +388,8 @@ class RunStore:
         return self._records(run_id, self._TRIALS_SQL + " ORDER BY t.trial_index")
 
     def pending(self, run_id: int) -> TrialRecord | None:
-        """The trial that was proposed but not told yet, if any (only the last one can be)."""
+        """The latest trial proposed and not told yet, if any (with one robot, only the last trial can be;
+        with several, :meth:`pending_trials` lists them all)."""
         sql = self._TRIALS_SQL + " AND o.run_id IS NULL ORDER BY t.trial_index DESC LIMIT 1"
         records = self._records(run_id, sql)
         return records[0] if records else None
