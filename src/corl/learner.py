@@ -267,10 +267,8 @@ class CORL:
 
     @property
     def best_observed(self) -> tuple[Proposal, Outcome] | None:
-        """The successful trial with the highest *reading* (under noise, the luckiest), or None.
-
-        Not what to deploy: that is :attr:`best`, the learner's best. Shown beside it under this name.
-        """
+        """The successful trial with the highest *reading* (the luckiest under noise), or None; not what
+        to deploy: that is :attr:`best`, the learner's best, shown beside it under this name."""
         return best_observed(self.history)
 
     def run(self, task: Task | None = None, *, max_trials: int | None = None,
@@ -439,6 +437,17 @@ class CORL:
             self.task = task  # the re-timed contacts hold from here on
         return w_star, r_star, w_i
 
+    def _realised(self, w_star, theta_star, theta):
+        """Eq. 18 at ``theta``: ``(w, None)`` to run, or ``(None, outcome)`` known (unrealisable, or failed before)."""
+        result = realise(self.task, w_star, theta_star, theta, self.config.solver)
+        if not result.feasible:
+            self.unrealisable += 1
+            return None, Outcome(False, None, {"unrealisable": True, "status": result.status})
+        if self.failed_before(result.w):
+            self.known_failures += 1
+            return None, Outcome(False, None, {"known_failure": True})
+        return result.w, None
+
     def _reinforcement(self, w_star, theta_star, r_star, data):
         task, cfg = self.task, self.config
         rng = np.random.default_rng([self.seed, self.rounds])
@@ -454,17 +463,11 @@ class CORL:
         while self.rl_trials < cfg.max_rl_trials and not optimizer.done:
             theta = optimizer.ask()  # theta(d+1) = argmax_theta a(theta, D), decided when done was read
             self.rl_trials += 1
-            result = realise(task, w_star, theta_star, theta, cfg.solver)  # Eq. 18
-            if not result.feasible:
-                self.unrealisable += 1
-                outcome = Outcome(False, None, {"unrealisable": True, "status": result.status})
-            elif self.failed_before(result.w):  # this trajectory failed already: its outcome is known
-                self.known_failures += 1
-                outcome = Outcome(False, None, {"known_failure": True})
-            else:
-                outcome = yield self._proposal(result.w, theta, "reinforcement")
+            w, outcome = self._realised(w_star, theta_star, theta)
+            if outcome is None:
+                outcome = yield self._proposal(w, theta, "reinforcement")
                 if outcome.success:
-                    candidates.append((result.w, theta, float(outcome.return_)))
+                    candidates.append((w, theta, float(outcome.return_)))
             optimizer.tell(theta, outcome)  # add datapoint to D
             data.append((theta, outcome))
             if cfg.theta_step_stop and np.linalg.norm(theta - previous) < cfg.eps_theta:

@@ -30,7 +30,6 @@ from corl import checks
 from corl.errors import InputError, StateError
 from corl.learner import CORL, cost_of
 from corl.problem import Outcome, Proposal
-from corl.realise import realise
 
 __all__ = ["ParallelCORL"]
 
@@ -157,16 +156,10 @@ class ParallelCORL(CORL):
                 while proposal is None and self.rl_trials < cfg.max_rl_trials and optimizer.ready:
                     theta = optimizer.ask()  # theta(d+1): safe given the data and the trials out
                     self.rl_trials += 1
-                    result = realise(task, w_star, theta_star, theta, cfg.solver)  # Eq. 18
-                    if not result.feasible:
-                        self.unrealisable += 1
-                        outcome = Outcome(False, None, {"unrealisable": True, "status": result.status})
-                    elif self.failed_before(result.w):  # this trajectory failed already: its outcome is known
-                        self.known_failures += 1
-                        outcome = Outcome(False, None, {"known_failure": True})
-                    else:
-                        proposal = self._proposal(result.w, theta, "reinforcement")
-                        out[proposal.index] = (theta, result.w)
+                    w, outcome = self._realised(w_star, theta_star, theta)  # Eq. 18
+                    if outcome is None:
+                        proposal = self._proposal(w, theta, "reinforcement")
+                        out[proposal.index] = (theta, w)
                         continue
                     optimizer.tell(theta, outcome)
                     data.append((theta, outcome))
