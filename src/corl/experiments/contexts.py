@@ -387,7 +387,8 @@ def contexts_table(payload: dict) -> str:
     truth = sorted({t["truth"].split(" ")[0] for t in tests})
     lines.append(f"(means over {len(tests)} test contexts; skill trained on {n} contexts; budget {payload['budget']} "
                  f"trials; best = the ground truth ({', '.join(truth)}) or the best return any method saw there, "
-                 f"whichever is higher: it was higher in {sum(t['truth_below_seen'] for t in tests)} of {len(tests)}; "
+                 f"whichever is higher (a method beat the ground truth in {sum(t['truth_below_seen'] for t in tests)} of "
+                 f"{len(tests)}); "
                  "a trial counts from its start, a method's trials to a target are its budget when never reached)")
     for kind in ("train", "test"):
         for r in payload[kind]:
