@@ -116,6 +116,27 @@ def test_contact_interval_and_point_on_a_known_scene():
     assert press_q.min() < -0.002
 
 
+def _lift(height: float) -> Recording:
+    """TOUCH with the sphere lifted off the button for 0.3 s in the middle, its bottom ``height``
+    above the button's resting top (z 0.07)."""
+    up = 0.07 + height + 0.01
+    return press([(0.0, 0.32, 0.01, 0.2), (0.8, 0.32, 0.01, 0.076), (0.9, 0.32, 0.01, 0.076), (0.95, 0.32, 0.01, up),
+                  (1.25, 0.32, 0.01, up), (1.3, 0.32, 0.01, 0.076), (1.5, 0.32, 0.01, 0.076), (2.0, 0.32, 0.01, 0.2)])
+
+
+def test_a_break_that_stays_near_the_object_does_not_split_the_contact():
+    # 1 mm off the top for 0.3 s (longer than gap): still the one push, as a bouncing object is
+    (iv,) = find_contacts(robot(), _lift(0.001), "button").intervals
+    assert iv.start == pytest.approx(0.774, abs=0.02) and iv.end == pytest.approx(1.52, abs=0.02)
+    # the same break with near=0, or lifted 2 cm: two contacts
+    for contacts in (find_contacts(robot(), _lift(0.001), "button", near=0.0),
+                     find_contacts(robot(), _lift(0.02), "button")):
+        first, second = contacts.intervals
+        assert first.end < 0.97 and second.start > 1.23
+    with pytest.raises(InputError, match="near=-0.1"):
+        find_contacts(robot(), TOUCH, "button", near=-0.1)
+
+
 def test_the_object_is_found_when_not_named_and_any_rate_works():
     fast = find_contacts(robot(), TOUCH, None)
     slow = find_contacts(robot(), press([(0.0, 0.32, 0.01, 0.2), (0.8, 0.32, 0.01, 0.076), (1.5, 0.32, 0.01, 0.076),

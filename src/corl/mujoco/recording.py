@@ -226,7 +226,7 @@ def subtree(model, roots) -> set:
 
 
 def find_contacts(robot: Robot, recording: Recording, object: str | None = None, *, gap: float = 0.1,
-                  slide_tolerance: float | None = None, grasp: bool = False) -> Contacts:
+                  slide_tolerance: float | None = None, grasp: bool = False, near: float = 0.002) -> Contacts:
     """Replay ``recording`` in ``robot``'s scene and find where the robot touches ``object``.
 
     Parameters
@@ -236,6 +236,10 @@ def find_contacts(robot: Robot, recording: Recording, object: str | None = None,
     object : the touched body's name; None: the one movable body the recording touches.
     gap : s, contact breaks shorter than this join one interval.
     slide_tolerance : m, the largest slide of a contact (default 5 % of the object's size).
+    near : m, a longer break in contact during which the robot's touching geoms stay this close to
+        the object does not end the interval: a pushed object that the contact solver lets bounce
+        a millimetre ahead of the fingers is still being pushed (how far and how long it bounces
+        differs between MuJoCo versions).
     grasp : the robot grasps ``object`` (it must be named): from the first step its bodies touch it
         from opposite sides (a pinch) until they all let go, the object's joints follow the grasped
         point (least squares) instead of being simulated. A joint-position log holds no grip force,
@@ -259,6 +263,8 @@ def find_contacts(robot: Robot, recording: Recording, object: str | None = None,
         raise InputError(f"{where}: columns {list(rec.joints)} are not the robot's joints {list(robot.joints)} in order")
     if grasp and object is None:
         raise InputError("grasp=True needs the grasped object's name")
+    if not (np.isfinite(near) and 0 <= near < 0.05):
+        raise InputError(f"near={near!r}: give the distance in m, in [0, 0.05)")
     dt = float(model.opt.timestep)
     times, q = rec.resampled(dt)
     holder = _Holder(model, robot.id("body", object)) if grasp else None
@@ -309,7 +315,7 @@ def find_contacts(robot: Robot, recording: Recording, object: str | None = None,
         raise InputError(f"{where}: the recording touches several candidate objects: {found}; h holds one "
                          f"object's contact point, record the motion with '{object}' alone")
     return _analyse(robot, rec, object, times, q, qpos, [r for r in records if body_of[r[2]] in mine], gap,
-                    slide_tolerance)
+                    slide_tolerance, near)
 
 
 class _Holder:
@@ -364,7 +370,20 @@ class _Holder:
         data.qvel[self.dadr] = (data.qpos[self.qadr] - before) / dt
 
 
-def _analyse(robot, rec, object, times, q, qpos, records, gap, slide_tolerance) -> Contacts:
+def _close(model, data, qpos, robot_geoms, object_geoms, first: int, last: int, near: float) -> bool:
+    """Whether some robot geom stays within ``near`` of the object at every step first..last."""
+    import mujoco
+
+    for k in range(first, last + 1):
+        data.qpos[:] = qpos[k]
+        mujoco.mj_kinematics(model, data)
+        if not any(mujoco.mj_geomDistance(model, data, int(a), int(b), near, None) < near  # distmax when farther
+                   for a in robot_geoms for b in object_geoms):
+            return False
+    return True
+
+
+def _analyse(robot, rec, object, times, q, qpos, records, gap, slide_tolerance, near) -> Contacts:
     """Intervals, points and slides from the contact records of a replay."""
     import mujoco
 
@@ -386,8 +405,11 @@ def _analyse(robot, rec, object, times, q, qpos, records, gap, slide_tolerance) 
     tol = 0.05 * size if slide_tolerance is None else float(slide_tolerance)
     steps = np.array(sorted({r[0] for r in records}))
     dt = float(times[1] - times[0])
-    breaks = np.flatnonzero(np.diff(steps) * dt > gap)
-    runs = np.split(steps, breaks + 1)
+    object_geoms = np.flatnonzero(np.isin(model.geom_bodyid, mine))
+    breaks = [i for i in np.flatnonzero(np.diff(steps) * dt > gap)  # bridged while the touching geoms stay near
+              if not _close(model, data, qpos, sorted({r[1] for r in records if r[0] in (steps[i], steps[i + 1])}),
+                            object_geoms, int(steps[i]) + 1, int(steps[i + 1]) - 1, near)]
+    runs = np.split(steps, np.array(breaks, dtype=int) + 1)
     joints = []
     for b in _chain(model, obj):
         joints += [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j) or f"#{j}"
