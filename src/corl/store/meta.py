@@ -118,7 +118,7 @@ class KeptByRun:
 
     def pending_trials(self, run_id: int) -> list:
         """Every trial proposed and not told yet, in index order (up to the run's K robots)."""
-        return [r for r in self.trials(run_id) if r.outcome is None]
+        return self._records(run_id, self._TRIALS_SQL + " AND o.run_id IS NULL ORDER BY t.trial_index")
 
     def check_room(self, db: sqlite3.Connection, run_id: int, last: int | None, index: int) -> None:
         """Refuse trial ``index`` while as many trials are pending as the run has robots."""
