@@ -48,12 +48,14 @@ def test_one_robot_is_corl_trial_for_trial(task):
 
 
 @pytest.mark.parametrize("order", [0, 3])
-def test_four_robots_share_only_the_black_box_step_and_lose_nothing(task, order):
+def test_four_robots_share_step_1_and_the_black_box_step_and_lose_nothing(task, order):
     corl = make_method("CORL", task, seed=0)
     corl.run()
     four = parallel(task, 4)
     together = fleet(four, task, order)
-    assert together and all(steps == {"reinforcement"} for _, steps in together)  # step 1, phase: one at a time
+    # step 1's chain and step 2 go out together, never mixed; the demonstration and phase steps one at a time
+    assert together and all(steps in ({"reinforcement"}, {"optimization"}) for _, steps in together)
+    assert {"reinforcement"} in [s for _, s in together] and {"optimization"} in [s for _, s in together]
     assert max(n for n, _ in together) <= 4
     assert sorted(p.index for p, _ in four.history) == list(range(len(four.history)))  # none lost, none twice
     failed = [p.w for p, o in four.history if not o.success]
@@ -61,6 +63,21 @@ def test_four_robots_share_only_the_black_box_step_and_lose_nothing(task, order)
         assert not any(np.linalg.norm(w - v) < four.config.eps_w for v in failed[k + 1:])
     assert sum(not o.success for _, o in four.history) <= 1.25 * sum(not o.success for _, o in corl.history) + 1
     assert four.best.return_ >= 0.98 * corl.best.return_
+
+
+@pytest.mark.parametrize("order", [0, 3])
+def test_step_1_hands_out_the_sequential_chain_and_stops_at_its_first_failure(task, order):
+    corl = make_method("CORL", task, seed=0)
+    corl.run()
+    four = parallel(task, 4)
+    fleet(four, task, order)
+    chain = lambda history: sorted(((p.index, p.w, o.success) for p, o in history  # noqa: E731
+                                    if p.step == "optimization" and p.round == 0), key=lambda x: x[0])
+    one, many = chain(corl.history), chain(four.history)
+    assert len(one) <= len(many) <= len(one) + 3  # at most K - 1 out beyond the sequential chain's end
+    for (_, w, ok), (_, v, ok4) in zip(one, many):  # the same steps in the same order, with the same outcomes
+        assert np.array_equal(w, v) and ok == ok4
+    assert np.array_equal(four.history[0][0].w, corl.history[0][0].w)
 
 
 def test_a_tell_names_a_pending_trial(task):

@@ -99,12 +99,11 @@ class CORLConfig:
 class Best:
     """The best policy so far: ``w`` (n,), ``theta`` (m,), its return and analytic cost J.
 
-    ``return_`` is the reading of w*'s trial. With ``CORL`` (whose return model fits the noise) theta*
-    is the learner's best: the sampled theta with the highest posterior mean of R among those the
-    model does not doubt, so the reading is not the luckiest one, and ``return_std`` is one reading's
-    noise (g_R's fitted noise std); with the paper's methods theta* has the highest reading (Alg. 1
-    as published) and ``return_std`` is NaN. ``reading`` repeats the trial's reading.
-    """
+    ``return_`` is the reading of w*'s trial. With ``CORL`` (whose return model fits the noise)
+    theta* is the learner's best: the sampled theta with the highest posterior mean of R among those
+    the model does not doubt, so not the luckiest reading; ``return_std`` is one reading's noise (g_R's
+    fitted noise std). With the paper's methods theta* has the highest reading (Alg. 1 as published)
+    and ``return_std`` is NaN. ``reading`` repeats the trial's reading."""
 
     w: np.ndarray
     theta: np.ndarray
@@ -179,9 +178,7 @@ class CORL:
         self._asked = False  # the pending trial was handed out by ask(): only then may tell() answer it
         self._finished = False
         self.start_step = "demonstration"  # the step name of trial 0 ("skill" when a skill's policy starts it)
-        # speculation: compute a step-1 / phase successor while its trial runs (see _speculate); only worth
-        # it when the rollout does not hold the GIL (a worker process, corl.tasks.worker), so off by default
-        self.speculative = False
+        self.speculative = False  # see _speculate; pays only when rollouts leave the GIL free (corl.tasks.worker)
         self._speculation: _Speculation | None = None
         self._gen: Generator[Proposal, Outcome, None] = self._algorithm()
 
@@ -204,7 +201,7 @@ class CORL:
     def tell(self, outcome: Outcome) -> None:
         """Record the outcome of the trial handed out by the last :meth:`ask` (each trial is told once)."""
         self.settle()  # the speculation shares the task's caches: nothing touches the task before it ends
-        if self._pending is None or not self._asked:  # the next trial is worked out at tell(), but not yet asked
+        if self._pending is None or not self._asked:  # the next trial is worked out at tell(), not yet asked
             raise StateError("tell() without a pending ask(): call ask() first, run its trial, then tell its outcome")
         if not isinstance(outcome, Outcome):
             raise InputError(f"tell() needs a corl.Outcome, got {type(outcome).__name__}")
@@ -228,14 +225,10 @@ class CORL:
             self._speculation.join()
 
     def _speculate(self, fn, *args, **kwargs) -> "_Speculation | None":
-        """Start ``fn(*args, **kwargs)`` in a thread when :attr:`speculative`, else None.
-
-        Used just before yielding a step-1 or phase trial whose successor does not depend on the
-        outcome: the very call the code after the yield would make, with the same arguments, runs
-        while the trial is rolled out. :meth:`tell` joins it before touching anything; the generator
-        then takes its result (or re-raises its error) where the sequential code would have made the
-        call, or drops it (a failure). Same inputs, deterministic code: the same trials, bit for bit.
-        """
+        """Start ``fn(*args, **kwargs)`` in a thread when :attr:`speculative`, else None: the call the
+        code after a step-1 or phase trial's yield would make, run while the trial is rolled out.
+        :meth:`tell` joins it first; the generator takes its result (or error) where the sequential
+        code would make the call, or drops it (a failure): the same trials, bit for bit."""
         if not self.speculative:
             return None
         self._speculation = _Speculation(fn, args, kwargs)
@@ -328,8 +321,7 @@ class CORL:
             self._end, self.stop_detail = self._rounds_end(theta_star, theta_before)
 
     def _rounds_end(self, theta_star, theta_before) -> tuple[StopReason, str]:
-        """Why the last round ended the run: its black-box step, when that stopped by its own rule
-        without moving theta* (more rounds would not help it), else ``MAX_ROUNDS``."""
+        """Why the last round ended the run: its black-box step's own rule if theta* did not move, else MAX_ROUNDS."""
         rounds = self.config.max_rounds
         reason = self.rl_stop_reason
         own = (StopReason.CONVERGED, StopReason.NO_IMPROVEMENT, StopReason.NO_SAFE_POINT)
@@ -341,6 +333,28 @@ class CORL:
     def _optimization(self, w_star, theta_star, r_star):
         task, cfg = self.task, self.config
         problem = motion_problem(task, theta_star)  # the task's banded problem (SQP) when it gives one
+        w_star, r_star, w_i, failed = yield from self._trajectory_steps(problem, w_star, theta_star, r_star)
+        if failed:
+            return w_star, r_star
+        task_star = self.task  # the task whose constraints w* satisfies (phase steps may re-time it)
+        if cfg.max_phase_steps > 0 and getattr(task, "spline", None) is not None:
+            w_star, r_star, w_i = yield from self._phase(problem, w_star, r_star, w_i, theta_star)
+        if not cfg.rollout_every_step and not np.array_equal(w_i, w_star):
+            if self.failed_before(w_i):
+                self.task = task_star
+                return w_star, r_star
+            outcome = yield self._proposal(w_i, theta_star, "optimization")
+            if outcome.success:
+                w_star, r_star = w_i, float(outcome.return_)
+                self._best = Best(w_star, theta_star, r_star, cost_of(task, w_star))
+            else:
+                self.eps_max /= 2.0
+                self.task = task_star
+        return w_star, r_star
+
+    def _trajectory_steps(self, problem, w_star, theta_star, r_star):
+        """Eq. 8's steps from w* (theta* fixed): (w*, R*, the last step w(i), whether a rollout failed)."""
+        task, cfg = self.task, self.config
         w_i = w_star
         ahead: _Speculation | None = None  # solve() from w_i, started while w_i was rolled out
         for step in range(cfg.max_optimization_steps):
@@ -363,55 +377,20 @@ class CORL:
                 self._resumed()
                 if not outcome.success:  # do not walk further into failure; later steps are smaller
                     self.eps_max /= 2.0
-                    return w_star, r_star
+                    return w_star, r_star, w_i, True
                 w_star, r_star = w_i, float(outcome.return_)  # set best w* if rollout successful
                 self._best = Best(w_star, theta_star, r_star, cost_of(task, w_star))
-        task_star = self.task  # the task whose constraints w* satisfies (phase steps may re-time it)
-        if cfg.max_phase_steps > 0 and getattr(task, "spline", None) is not None:
-            w_star, r_star, w_i = yield from self._phase(problem, w_star, r_star, w_i, theta_star)
-        if not cfg.rollout_every_step and not np.array_equal(w_i, w_star):
-            if self.failed_before(w_i):
-                self.task = task_star
-                return w_star, r_star
-            outcome = yield self._proposal(w_i, theta_star, "optimization")
-            if outcome.success:
-                w_star, r_star = w_i, float(outcome.return_)
-                self._best = Best(w_star, theta_star, r_star, cost_of(task, w_star))
-            else:
-                self.eps_max /= 2.0
-                self.task = task_star
-        return w_star, r_star
+        return w_star, r_star, w_i, False
 
     def _phase(self, problem, w_star, r_star, w_i, theta_star):
-        """Sec. VI-B: phase steps (Eq. 10) with the geometry fixed, after the trajectory steps.
-
-        Each step re-times the path (trust region on the phase profile), re-fits the B-spline and
-        projects it back onto ``h = 0`` (Eq. 18); it is kept only if it lowers J, and rolled out
-        like a trajectory step. A task with ``retimed(time_map)`` lets its contact instants move
-        with the phase ("smoother motions also w.r.t. the time course of the constraints"): the
-        learner continues with the re-timed task. Without it, ``task.pinned_times`` keep their phase.
-        """
-        from corl.trajectory.phase import optimize_phase, retime
-
+        """Sec. VI-B: phase steps (Eq. 10) with the geometry fixed, after the trajectory steps. Each
+        re-times the path (trust region on the phase profile), re-fits the B-spline and projects it onto
+        ``h = 0`` (Eq. 18); kept if it lowers J, rolled out like a trajectory step. A task with
+        ``retimed(time_map)`` moves its contact instants with the phase and the learner continues with
+        the re-timed task; without it, ``task.pinned_times`` keep their phase."""
         cfg = self.config
-        movable = callable(getattr(self.task, "retimed", None))
-        pinned = () if movable else tuple(getattr(self.task, "pinned_times", ()))
+        candidate = self._phase_step(theta_star)
         J_i = cost_of(self.task, w_i)
-
-        def candidate(task, problem, w_i):  # one phase step from w_i: (task, problem, w, J), or None: stop
-            phase = optimize_phase(task.spline, w_i, pinned_times=pinned)
-            if not phase.cost_after < phase.cost_before:
-                return None
-            if movable:
-                grid = np.linspace(0.0, task.spline.duration, phase.p.shape[0])
-                T = task.spline.duration
-                task = task.retimed(lambda t, p=phase.p: np.interp(np.asarray(t) / T, p, grid))
-                problem = motion_problem(task, theta_star)
-            retimed = retime(task.spline, w_i, phase.p, equalities=problem)
-            if retimed.projection is not None and not feasible(retimed.projection, cfg.solver):
-                return None
-            return task, problem, retimed.w, cost_of(task, retimed.w)
-
         ahead: _Speculation | None = None  # the next phase step from w_i, started while w_i was rolled out
         for step in range(cfg.max_phase_steps):
             found = ahead.result() if ahead is not None else candidate(self.task, problem, w_i)
@@ -436,6 +415,28 @@ class CORL:
                 self._best = Best(w_star, theta_star, r_star, J_i)
             self.task = task  # the re-timed contacts hold from here on
         return w_star, r_star, w_i
+
+    def _phase_step(self, theta_star):
+        """One phase step from (task, problem, w_i): (task, problem, w, J), None to stop (see _phase)."""
+        from corl.trajectory.phase import optimize_phase, retime
+
+        movable = callable(getattr(self.task, "retimed", None))
+        pinned = () if movable else tuple(getattr(self.task, "pinned_times", ()))
+
+        def candidate(task, problem, w_i):
+            phase = optimize_phase(task.spline, w_i, pinned_times=pinned)
+            if not phase.cost_after < phase.cost_before:
+                return None
+            if movable:
+                grid = np.linspace(0.0, task.spline.duration, phase.p.shape[0])
+                T = task.spline.duration
+                task = task.retimed(lambda t, p=phase.p: np.interp(np.asarray(t) / T, p, grid))
+                problem = motion_problem(task, theta_star)
+            retimed = retime(task.spline, w_i, phase.p, equalities=problem)
+            if retimed.projection is not None and not feasible(retimed.projection, self.config.solver):
+                return None
+            return task, problem, retimed.w, cost_of(task, retimed.w)
+        return candidate
 
     def _realised(self, w_star, theta_star, theta):
         """Eq. 18 at ``theta``: ``(w, None)`` to run, or ``(None, outcome)`` known (unrealisable, or failed before)."""
@@ -488,9 +489,8 @@ class CORL:
             chosen = [c for c in candidates if np.array_equal(c[1], posterior.theta)]
             if chosen:  # the last trial at that theta (a repeat's w is the same projection)
                 w_star, theta_star, r_star = chosen[-1]
-            # the value: w*'s own reading, +- one reading's noise. theta* was chosen on g_R's posterior, so the
-            # reading is no luckiest one; and g_R's mean at theta* would mix in the readings of earlier w
-            # (step 1 lowers J and changes R at a fixed theta: on the door, 0.49 at a w* that reads 0.57)
+            # the value: w*'s own reading +- one reading's noise (theta* chosen on g_R's posterior; g_R's mean at
+            # theta* would mix in earlier w's readings: on the door, 0.49 at a w* that reads 0.57)
             self._best = Best(w_star, theta_star, r_star, cost_of(task, w_star), optimizer.noise_std_, r_star)
             return w_star, theta_star, r_star, data
         for w, theta, r in candidates:

@@ -2,8 +2,14 @@
 
 Where the paper's loop can hand out several trials, it does; where it is sequential, it does not:
 
-* the demonstration (trial 0) and its repeats, step 1's trust-region steps (Eq. 8) and the phase
-  steps (Eq. 10) each start from the outcome of the one before: one trial out at a time, K = 1 there;
+* the demonstration (trial 0) and its repeats: one trial out at a time, K = 1 there;
+* step 1's trust-region steps (Eq. 8) and the phase steps (Eq. 10), with ``rollout_every_step``,
+  each form a chain whose next step is worked out from the last whatever its outcome, a success
+  only moving w* along it: up to K consecutive steps go out at once (speculation), their outcomes
+  are read in the chain's order as the sequential loop would, and the first failure ends the
+  chain as there (step 1 halves eps_max; w* is the last success before it). No new step goes out
+  once any step of the chain failed; the steps out beyond a failure are awaited but move nothing
+  (the sequential loop would not have run them). Without ``rollout_every_step`` step 1 has one trial;
 * step 2, the black-box step over theta, hands out up to K trials: its method is asked with the
   others pending (:attr:`corl.optimizers.base.BlackBoxOptimizer.max_pending`; ``CORL``'s SEIB keeps
   each proposal safe under the told data and apart from the pending ones), and the outcomes are told
@@ -28,8 +34,9 @@ import numpy as np
 
 from corl import checks
 from corl.errors import InputError, StateError
-from corl.learner import CORL, cost_of
+from corl.learner import CORL, Best, cost_of
 from corl.problem import Outcome, Proposal
+from corl.trajectory.solver import solve
 
 __all__ = ["ParallelCORL"]
 
@@ -131,6 +138,90 @@ class ParallelCORL(CORL):
         if not again and self.failed_before(w):
             raise StateError(f"internal error: the learner was about to propose a w that already failed ({step})")
         return Proposal(index=len(self.history) + len(self.pending), w=w, theta=theta, step=step, round=self.rounds)
+
+    def _trajectory_steps(self, problem, w_star, theta_star, r_star):
+        """Step 1's chain with up to ``robots`` steps out at once (module docstring); CORL's with one robot."""
+        cfg = self.config
+        if self.robots == 1 or not cfg.rollout_every_step:
+            return (yield from super()._trajectory_steps(problem, w_star, theta_star, r_star))
+        task, best = self.task, [w_star, r_star]
+
+        def advance(w_i):  # Eq. 8 from the chain's last step: argmin J s.t. h = 0, ||w - w(i)|| < eps_max
+            w_next = solve(problem, w_i, center=w_i, radius=self.eps_max, config=cfg.solver).w
+            return None if np.linalg.norm(w_next - w_i) < cfg.eps_w or self.failed_before(w_next) else w_next
+
+        def accept(w, r):
+            best[:] = w, r
+            self._best = Best(w, theta_star, r, cost_of(task, w))
+
+        last, failed = yield from self._chain(w_star, advance, lambda w: w, accept, cfg.max_optimization_steps,
+                                              "optimization", theta_star)
+        if failed:  # do not walk further into failure; later steps are smaller
+            self.eps_max /= 2.0
+        return best[0], best[1], last, failed
+
+    def _phase(self, problem, w_star, r_star, w_i, theta_star):
+        """The phase steps' chain with up to ``robots`` steps out at once; CORL's with one robot."""
+        cfg = self.config
+        if self.robots == 1 or not cfg.rollout_every_step:
+            return (yield from super()._phase(problem, w_star, r_star, w_i, theta_star))
+        candidate, best = self._phase_step(theta_star), [w_star, r_star]
+
+        def advance(state):  # one phase step from the chain's last: (task, problem, w, J), kept if it lowers J
+            task, problem, w, J = state
+            found = candidate(task, problem, w)
+            if found is None or found[3] >= J or np.linalg.norm(found[2] - w) < cfg.eps_w:
+                return None
+            return None if self.failed_before(found[2]) else found
+
+        def accept(state, r):
+            best[:] = state[2], r
+            self._best = Best(state[2], theta_star, r, state[3])
+            self.task = state[0]  # the re-timed contacts hold from here on
+
+        last, _ = yield from self._chain((self.task, problem, w_i, cost_of(self.task, w_i)), advance, lambda s: s[2],
+                                         accept, cfg.max_phase_steps, "phase", theta_star)
+        return best[0], best[1], last[2]
+
+    def _chain(self, start, advance, w_of, accept, max_steps: int, step: str, theta_star):
+        """Up to ``robots`` consecutive steps of a chain out at once; their outcomes read in the chain's
+        order, ``accept(state, return)`` at each success until the first failure. ``advance(state)`` is
+        the next state, or None where the chain ends. Returns (the last state handed out, whether one failed)."""
+        state, steps, ended, failed, doomed = start, 0, False, False, False
+        chain: list[int] = []  # the trials out, in the chain's order
+        of: dict[int, object] = {}
+        told: dict[int, Outcome] = {}
+        message = yield _IDLE
+        while True:
+            if message is _ASK:
+                proposal = None
+                if not (ended or doomed) and steps < max_steps:
+                    following = advance(state)
+                    steps += 1
+                    if following is None:
+                        ended = True
+                    else:
+                        state = following
+                        proposal = self._proposal(w_of(state), theta_star, step)
+                        chain.append(proposal.index)
+                        of[proposal.index] = state
+                if proposal is None and not chain:
+                    break
+                message = yield _WAIT if proposal is None else _Out(proposal)
+                continue
+            index, outcome = message
+            told[index] = outcome
+            doomed = doomed or not outcome.success  # no new step goes out once one failed
+            while chain and chain[0] in told:  # in the chain's order, as the sequential loop reads them
+                k = chain.pop(0)
+                first = told.pop(k)
+                if not failed and first.success:
+                    accept(of[k], float(first.return_))
+                failed = failed or not first.success
+            if not chain and (failed or ended or steps >= max_steps):
+                break
+            message = yield _IDLE
+        return state, failed
 
     def _reinforcement(self, w_star, theta_star, r_star, data):
         """Step 2 with up to ``robots`` trials out (module docstring); the same end as CORL's."""
