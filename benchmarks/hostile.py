@@ -313,29 +313,36 @@ FAST = {("status", "store: config not JSON"), ("export", "store: w_shape not JSO
 
 
 def prepare(folder: Path) -> None:
-    """The template every case copies: stores, a file, a folder and the user task."""
-    env = _env()
+    """The template every case copies: stores, a file, a folder and the user task. The stores are made by
+    corl's command line run in this process (CliRunner, absolute paths: a store holds none), which spares
+    a start-up per command; the cases themselves run as subprocesses."""
+    from typer.testing import CliRunner
 
-    def corl(*args: str) -> None:
-        subprocess.run(CORL + list(args), cwd=folder, env=env, check=True, capture_output=True)
+    from corl.cli import app
+
+    def corl(command: str, store: str, *args: str) -> None:
+        args = tuple(str(folder / a) if a == "trials" else a for a in args)
+        res = CliRunner().invoke(app, [command, "--store", str(folder / store), *args])
+        if res.exit_code != 0:
+            raise RuntimeError(f"corl {command} --store {store} {' '.join(args)}: exit {res.exit_code}\n{res.output}")
 
     (folder / "usertask.py").write_text(USERTASK)
     (folder / "afile.txt").write_text("a file, not a folder\n")
     (folder / "sub").mkdir()
-    corl("ask", "--store", "demo.corl", "--task", "synthetic", "--out", "trials", "--raw")
+    corl("ask", "demo.corl", "--task", "synthetic", "--out", "trials", "--raw")
     shutil.copy(folder / "demo.corl", folder / "s.corl")
-    corl("tell", "--store", "s.corl", "--task", "synthetic", "--success", "yes", "--return", "0.2")
-    corl("ask", "--store", "s.corl", "--task", "synthetic", "--out", "trials", "--raw")
+    corl("tell", "s.corl", "--task", "synthetic", "--success", "yes", "--return", "0.2")
+    corl("ask", "s.corl", "--task", "synthetic", "--out", "trials", "--raw")
     shutil.copy(folder / "s.corl", folder / "fin.corl")  # a run marked finished, as `corl run` leaves one
     with contextlib.closing(sqlite3.connect(folder / "fin.corl")) as db, db:
         db.execute("DELETE FROM trials WHERE trial_index = 1")  # nothing pending
         db.execute("UPDATE runs SET status = 'finished'")
     for _ in range(2):  # demo.corl: the demonstration read twice as failed (start_retries) and asked a third time
-        corl("tell", "--store", "demo.corl", "--task", "synthetic", "--success", "no")
-        corl("ask", "--store", "demo.corl", "--task", "synthetic", "--out", "trials", "--raw")
-    corl("ask", "--store", "ctx.corl", "--task", "synthetic-context", "--context", "0.5", "--out", "trials", "--raw")
-    corl("tell", "--store", "ctx.corl", "--task", "synthetic-context", "--success", "yes", "--return", "0.9")
-    corl("ask", "--store", "ctx.corl", "--task", "synthetic-context", "--out", "trials", "--raw")
+        corl("tell", "demo.corl", "--task", "synthetic", "--success", "no")
+        corl("ask", "demo.corl", "--task", "synthetic", "--out", "trials", "--raw")
+    corl("ask", "ctx.corl", "--task", "synthetic-context", "--context", "0.5", "--out", "trials", "--raw")
+    corl("tell", "ctx.corl", "--task", "synthetic-context", "--success", "yes", "--return", "0.9")
+    corl("ask", "ctx.corl", "--task", "synthetic-context", "--out", "trials", "--raw")
 
 
 def _damage(store: Path, damage: str) -> None:

@@ -18,7 +18,8 @@ the last lines count the probes that failed, and must read 0.
 
 A third kind, **load**, runs against a server started with a file limit of 1,024 (``ulimit -n``):
 a flood of 1,100 connections that each send half a request line and wait, slow headers, slow
-bodies with and without the token. During each, a well-behaved client asks ``GET /status`` on a
+bodies with and without the token. During each (until the server has closed every hostile connection,
+or for a fixed time when the flood reopens them), a well-behaved client asks ``GET /status`` on a
 fresh connection every 0.2 s; its second table prints that client's latency, how many hostile
 connections the server dropped and how soon, and how much the server wrote to stderr. Every
 well-behaved request must be answered within 5 s, and stderr must stay under 1 MB.
@@ -41,6 +42,7 @@ import sys
 import tempfile
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -168,22 +170,24 @@ def command_probes(folder: Path, url: str) -> list[Result]:
         ("an unknown method", ["--store", "n7.corl", "--task", "synthetic", "--method", "bogus"]),
         ("a port out of range", ["--store", "n8.corl", "--task", "synthetic", "--port", "70000"]),
     ]
-    results = []
-    try:
-        for label, args in probes:
-            cmd = [*CORL, "serve", *args] if "--port" in args else [*CORL, "serve", "--port", "0", *args]
-            try:
-                res = subprocess.run(cmd, cwd=folder, env=_env(), capture_output=True, text=True, timeout=120)
-                lines = res.stderr.strip().splitlines()
-                first = lines[0] if lines else ""
-                ok = (res.returncode == 2 and len(lines) == 1 and first.startswith("error: ")
-                      and "Traceback" not in res.stderr and res.stdout == "")
-                results.append(Result(f"corl serve: {label}", 2, res.returncode, first[:100], ok))
-            except subprocess.TimeoutExpired:  # it started serving: the refusal failed
-                results.append(Result(f"corl serve: {label}", 2, -1, "kept running", False))
+
+    def probe(label: str, args: list[str]) -> Result:
+        cmd = [*CORL, "serve", *args] if "--port" in args else [*CORL, "serve", "--port", "0", *args]
+        try:
+            res = subprocess.run(cmd, cwd=folder, env=_env(), capture_output=True, text=True, timeout=120)
+        except subprocess.TimeoutExpired:  # it started serving: the refusal failed
+            return Result(f"corl serve: {label}", 2, -1, "kept running", False)
+        lines = res.stderr.strip().splitlines()
+        first = lines[0] if lines else ""
+        ok = (res.returncode == 2 and len(lines) == 1 and first.startswith("error: ")
+              and "Traceback" not in res.stderr and res.stdout == "")
+        return Result(f"corl serve: {label}", 2, res.returncode, first[:100], ok)
+
+    try:  # two at a time (each its own store): a refused start is mostly its imports
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            return list(pool.map(lambda p: probe(*p), probes))
     finally:
         busy.close()
-    return results
 
 
 def request_probes(url: str) -> list[Result]:
@@ -281,12 +285,18 @@ def request_probes(url: str) -> list[Result]:
 
 
 def prepare(folder: Path) -> None:
-    """``s.corl``: the synthetic task, trial 0 told, trial 1 pending (through the CLI, as a user would)."""
+    """``s.corl``: the synthetic task, trial 0 told, trial 1 pending (through the CLI, as a user would; run in
+    this process, which spares a start-up per command)."""
+    from typer.testing import CliRunner
+
+    from corl.cli import app
+
     (folder / "token.txt").write_text(TOKEN + "\n")
     (folder / "token.txt").chmod(0o600)
     for cmd in (["ask", "--raw"], ["tell", "--success", "yes", "--return", "0.5"], ["ask", "--raw"]):
-        subprocess.run([*CORL, cmd[0], "--store", "s.corl", "--task", "synthetic", *cmd[1:]], cwd=folder,
-                       env=_env(), check=True, capture_output=True, timeout=120)
+        res = CliRunner().invoke(app, [cmd[0], "--store", str(folder / "s.corl"), "--task", "synthetic", *cmd[1:]])
+        if res.exit_code != 0:
+            raise RuntimeError(f"corl {' '.join(cmd)}: exit {res.exit_code}\n{res.output}")
 
 
 def run_all(folder: Path) -> list[Result]:
@@ -304,6 +314,7 @@ def run_all(folder: Path) -> list[Result]:
 SERVER_FILES = 1024  # the server's file limit (ulimit -n) in the load probes
 FLOOD = 1100  # more connections than the server has files
 WELL_BEHAVED_S = 5.0  # a well-behaved request must be answered within this, whatever the load
+MIN_ASKS = 12  # a probe asks GET /status at least this often, even when its load is over sooner
 
 
 @dataclass
@@ -405,9 +416,11 @@ def _status_once(url: str, auth: dict) -> float:
 
 def load_probe(url: str, label: str, count: int, first: bytes, trickle: bytes, seconds: float,
                expect_drop_s: float, reopen: bool = False, *, stderr: Path) -> Load:
-    """Run ``count`` hostile connections for ``seconds`` while a well-behaved client asks /status every 0.2 s.
-    ok: every well-behaved request answered in time, stderr under 1 MB, every hostile connection closed by
-    the server within ``expect_drop_s`` of its opening (but those open when the probe ends, with ``reopen``)."""
+    """Run ``count`` hostile connections for ``seconds`` while a well-behaved client asks /status every 0.2 s;
+    without ``reopen``, the probe ends sooner once the server has closed every hostile connection (and the
+    client has asked at least MIN_ASKS times): the load is over. ok: every well-behaved request answered in
+    time, stderr under 1 MB, every hostile connection closed by the server within ``expect_drop_s`` of its
+    opening (but those open when the probe ends, with ``reopen``)."""
     auth = {"Authorization": f"Bearer {TOKEN}"}
     host, port = url.rsplit("//", 1)[1].rsplit(":", 1)
     before = stderr.stat().st_size
@@ -418,6 +431,8 @@ def load_probe(url: str, label: str, count: int, first: bytes, trickle: bytes, s
     end = time.monotonic() + seconds
     while time.monotonic() < end:
         latencies.append(_status_once(url, auth))
+        if not reopen and len(latencies) >= MIN_ASKS and len(hostiles.drops) >= hostiles.opened:
+            break  # every hostile connection is closed: the load is over
         time.sleep(0.2)
     hostiles.halt.set()
     hostiles.join(30)

@@ -1,6 +1,11 @@
 """SIGKILL of ``corl serve`` at random moments during a 200-trial robot loop, each time restarted on the
 same store and port: nothing is lost, no trial is committed or executed twice, and the run ends
-identical to an uninterrupted one."""
+identical to an uninterrupted one.
+
+The kills are spread over the whole run: one a random 0-0.15 s (a few ask-move-tell cycles) after the
+robot has told each of ten trial counts from 5 to 195, so each lands at a random point of a cycle (an
+ask being computed or committed, the robot moving, a tell) in every phase of the run, and none is spent
+on a server nobody talks to (each restart costs a couple of seconds of start-up)."""
 
 from __future__ import annotations
 
@@ -42,11 +47,13 @@ def _free_port() -> int:
 
 
 class KillingServer:
-    """``corl serve`` on a fixed port, SIGKILLed ``delay()`` seconds after each start and started again."""
+    """``corl serve`` on a fixed port, SIGKILLed a random 0-0.15 s after ``told()`` reaches each of ``targets``
+    and started again."""
 
-    def __init__(self, store: Path, port: int, seed: int) -> None:
+    def __init__(self, store: Path, port: int, seed: int, told, targets) -> None:
         self.store, self.port = store, port
         self.rng = np.random.default_rng(seed)
+        self.told, self.targets = told, list(targets)
         self.kills = 0
         self.proc: subprocess.Popen | None = None
         self.stopping = threading.Event()
@@ -60,13 +67,17 @@ class KillingServer:
         assert line and json.loads(line)["url"].endswith(f":{self.port}"), self.proc.stderr.read()
 
     def _loop(self) -> None:
-        while not self.stopping.is_set():
-            self._start()
-            if self.stopping.wait(self.rng.uniform(0.02, 0.6)):
-                break
+        self._start()
+        for target in self.targets:
+            while self.told() < target:
+                if self.stopping.wait(0.005):
+                    return
+            if self.stopping.wait(self.rng.uniform(0.0, 0.15)):
+                return
             self.proc.send_signal(signal.SIGKILL)
             self.proc.wait()
             self.kills += 1
+            self._start()
 
     def __enter__(self) -> "KillingServer":
         self.thread.start()
@@ -88,14 +99,15 @@ def test_sigkill_at_random_moments_loses_nothing_and_repeats_nothing(tmp_path):
         reference = db.trials(1)
     port = _free_port()
     executed: list[int] = []  # the trials the "robot" ran
-    with KillingServer(tmp_path / "served.corl", port, seed=24) as server:
+    told = [0]
+    targets = np.linspace(5, TRIALS - 5, 10).round().astype(int)  # 5, 26, ..., 195: every phase of the run
+    with KillingServer(tmp_path / "served.corl", port, seed=24, told=lambda: told[0], targets=targets) as server:
         c = Client(f"http://127.0.0.1:{port}", raw=True, retry_for=120)
-        told = 0
-        while told < TRIALS:
+        while told[0] < TRIALS:
             trial = c.ask()
             executed.append(trial.index)
             time.sleep(0.02)  # the robot moves
-            told = c.tell(task.rollout(trial.w))["trials"]
+            told[0] = c.tell(task.rollout(trial.w))["trials"]
         kills = server.kills
     assert kills >= 8, f"only {kills} kills: the test did not test much"
     assert executed == list(range(TRIALS)), "a trial was executed twice or skipped"

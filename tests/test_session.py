@@ -23,6 +23,7 @@ from corl.settings import PAPER_SYNTHETIC
 from corl.tasks.synthetic import SyntheticTask
 
 CORL = [sys.executable, "-m", "corl.cli"]
+FIGURES = 1 << 30  # progress(): corl run writes its figures, after every trial
 
 
 def dump(path):
@@ -129,48 +130,66 @@ def test_cli_ask_tell_errors_leave_store_as_it_was(tmp_path):
     assert res.exit_code == 0 and (tmp_path / "t.csv").read_text().count("\n") == 2
 
 
+def progress(proc):
+    """What ``corl run`` (without --quiet) tells on stderr as it goes: the index of each trial as it is told,
+    then FIGURES once it writes its figures and summary."""
+    for line in proc.stderr:
+        if line.startswith("trial "):
+            yield int(line.split()[1])
+        elif line.startswith("writing figures"):
+            yield FIGURES
+
+
 @pytest.mark.slow
 def test_sigkill_at_random_moments_then_resume_equals_uninterrupted(tmp_path):
+    """``corl run`` SIGKILLed at 8 random moments spread over its phases, resumed after each: one just after
+    the store's creation and first trial, five in the trials (one in each fifth), two while it writes its
+    figures and summary. Every stored state is a prefix of the uninterrupted run's, and the last resume
+    ends equal to it."""
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
-    args = ["run", "synthetic", "--seed", "1", "--quiet"]
+    args = ["run", "synthetic", "--seed", "1"]
     ref = tmp_path / "ref"
-    t0 = time.monotonic()
-    subprocess.run(CORL + args + ["--out", str(ref)], check=True, env=env, capture_output=True)
-    duration = time.monotonic() - t0  # kills land inside a run however fast this machine and its libraries are
+    proc = subprocess.Popen(CORL + args + ["--out", str(ref)], env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    for step in progress(proc):
+        if step == FIGURES:
+            t0 = time.monotonic()
+    assert proc.wait() == 0
+    writing = time.monotonic() - t0  # the figures and summary
     expected, status = trials_of(ref / "run.corl")
     assert status == "finished" and len(expected) > 100
-    out = tmp_path / "killed"
     rng = random.Random(7)
-    kills = attempts = 0
-    first = True
-    while kills < 20 and attempts < 80:
-        attempts += 1
-        cmd = CORL + args + ["--out", str(out)] + ([] if first else ["--resume"])
-        proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-        time.sleep(rng.uniform(0.3, max(0.6, 0.9 * duration)))
-        if proc.poll() is not None:  # finished before the kill: it must equal the reference
-            assert proc.returncode == 0, proc.stderr.read().decode()
+    fifths = [int((i + rng.uniform(0.1, 0.9)) / 5 * len(expected)) for i in range(5)]
+    plan = [(0, rng.uniform(0, 0.01)), *((n, rng.uniform(0, 0.02)) for n in fifths),
+            (FIGURES, rng.uniform(0.05, 0.45) * writing), (FIGURES, rng.uniform(0.55, 0.95) * writing)]
+    out = tmp_path / "killed"
+    kills = 0
+    for target, delay in plan:  # kill once it has told trial ``target`` (or begun its figures), ``delay`` s later
+        cmd = CORL + args + ["--out", str(out)] + (["--resume"] if (out / "run.corl").exists() else [])
+        proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        if any(step >= target for step in progress(proc)):
+            time.sleep(delay)
+        else:  # it ended before the kill: it must be the reference
+            proc.wait()
+        if proc.poll() is not None:
+            assert proc.returncode == 0
             assert trials_of(out / "run.corl") == (expected, "finished")
-            if kills >= 10:
-                break
-            shutil.rmtree(out)  # too few kills yet: start over from a fresh store
-            first = True
+            shutil.rmtree(out)  # the next kills on a fresh store
             continue
         proc.send_signal(signal.SIGKILL)
         proc.wait()
         kills += 1
         if (out / "run.corl").exists():
-            first = False
             partial, _ = trials_of(out / "run.corl")
             assert partial == expected[: len(partial)] or (
                 partial[:-1] == expected[: len(partial) - 1] and partial[-1][4] is None)
     resume = ["--resume"] if (out / "run.corl").exists() else []
-    res = subprocess.run(CORL + args + ["--out", str(out)] + resume, env=env, capture_output=True)
+    res = subprocess.run(CORL + args + ["--out", str(out), "--quiet"] + resume, env=env, capture_output=True)
     assert res.returncode == 0, res.stderr.decode()
     got, status = trials_of(out / "run.corl")
     assert status == "finished"
     assert got == expected
-    assert kills >= 10
+    assert kills >= len(plan) - 1
     summary = json.loads((out / "summary.json").read_text())
     assert summary["trials"] == len(expected)
 
