@@ -151,17 +151,18 @@ def test_sigkill_at_random_moments_then_resume_equals_uninterrupted(tmp_path):
     ref = tmp_path / "ref"
     proc = subprocess.Popen(CORL + args + ["--out", str(ref)], env=env, stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True)
+    t0 = None
     for step in progress(proc):
         if step == FIGURES:
             t0 = time.monotonic()
-    assert proc.wait() == 0
+    assert proc.wait() == 0 and t0 is not None, "corl run did not say 'writing figures'"
     writing = time.monotonic() - t0  # the figures and summary
     expected, status = trials_of(ref / "run.corl")
     assert status == "finished" and len(expected) > 100
     rng = random.Random(7)
     fifths = [int((i + rng.uniform(0.1, 0.9)) / 5 * len(expected)) for i in range(5)]
     plan = [(0, rng.uniform(0, 0.01)), *((n, rng.uniform(0, 0.02)) for n in fifths),
-            (FIGURES, rng.uniform(0.05, 0.45) * writing), (FIGURES, rng.uniform(0.55, 0.95) * writing)]
+            (FIGURES, rng.uniform(0.0, 0.1) * writing), (FIGURES, rng.uniform(0.3, 0.8) * writing)]
     out = tmp_path / "killed"
     kills = 0
     for target, delay in plan:  # kill once it has told trial ``target`` (or begun its figures), ``delay`` s later
@@ -189,7 +190,7 @@ def test_sigkill_at_random_moments_then_resume_equals_uninterrupted(tmp_path):
     got, status = trials_of(out / "run.corl")
     assert status == "finished"
     assert got == expected
-    assert kills >= len(plan) - 1
+    assert kills >= len(plan) - 1  # the last may come after a resumed run's quicker figures
     summary = json.loads((out / "summary.json").read_text())
     assert summary["trials"] == len(expected)
 
