@@ -293,5 +293,6 @@ def bench_parallel(
         return print_json({k: v for k, v in payload.items()})
     for k, r in payload["runs"].items():
         typer.echo(f"{k} robot{'' if k == '1' else 's'}: wall {r['wall_s']:.1f} s, {r['trials']} trials, "
-                   f"{r['failures']} failures, final return {r['final_return']}, out at once {r['out_at_once']}")
+                   f"{r['failures']} failure{'' if r['failures'] == 1 else 's'}, final return {r['final_return']}, "
+                   f"out at once {r['out_at_once']}")
     typer.echo(f"wall time {payload['wall_ratio']:.2f}x one robot's; wrote {out / 'parallel.json'}")

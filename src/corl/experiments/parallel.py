@@ -56,8 +56,10 @@ def parallel_bench(task_spec: str, robots: int, seconds: float, seed: int, out: 
     runs = {str(k): parallel_run(task_spec, k, seconds, seed, out / f"robots-{k}.corl", overrides=overrides,
                                  backend=backend, progress=progress)
             for k in dict.fromkeys((1, robots))}
+    from corl.versions import library_versions
+
     one, many = runs["1"], runs[str(robots)]
-    return {"task": task_spec, "robots": robots, "trial_seconds": seconds, "seed": seed, "backend": backend,
+    return {"versions": library_versions(), "task": task_spec, "robots": robots, "trial_seconds": seconds, "seed": seed, "backend": backend,
             "corl_overrides": overrides or {}, "wall_ratio": many["wall_s"] / one["wall_s"], "runs": runs}
 
 
@@ -72,7 +74,8 @@ def plot_parallel(payload: dict, path: Path) -> Path:
     for k, r in payload["runs"].items():
         points = [(t, b) for t, b in r["curve"] if b is not None]
         ax.step([t for t, _ in points], [b for _, b in points], where="post",
-                label=f"{k} robot{'' if k == '1' else 's'}: {r['trials']} trials, {r['failures']} failures")
+                label=f"{k} robot{'' if k == '1' else 's'}: {r['trials']} trials, {r['failures']} "
+                      f"failure{'' if r['failures'] == 1 else 's'}")
     ax.set_xlabel("wall time (s)")
     ax.set_ylabel("best return (the learner's)")
     ax.set_title(f"{payload['task']}: {payload['trial_seconds']:g} s per trial", fontsize=9)
