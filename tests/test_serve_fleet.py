@@ -271,3 +271,23 @@ def test_one_robot_is_served_as_before_and_a_robot_name_changes_nothing(tmp_path
         c.tell(task.rollout(first.w))
         s = c.status()
         assert s["pending"] is None and "pending_trials" not in s and "robots" not in s
+
+
+def test_trials_out_that_no_robot_holds_go_to_the_first_robots_that_ask(tmp_path, module):
+    from corl.session import StoredRun
+    from corl.tasks.registry import load_task
+
+    task = load_task(module)
+    store = tmp_path / "run.corl"
+    with RunStore(store) as db:  # as corl run --robots 3 leaves a run it was killed in: trials out, no robot named
+        session = StoredRun.new(task, task_spec=module, method="CORL", seed=0, robots=K).attach(db)
+        while len(session.pending) < 2:
+            if session.try_ask() is None:
+                oldest = session.pending[0]
+                session.tell(task.rollout(oldest.w), oldest.index)
+        out = [p.index for p in session.pending]
+    with background(store, module) as url:
+        c = Client(url, raw=True, retry_for=0)
+        assert c.status()["pending_robots"] == [None] * len(out)
+        assert [c.ask(robot=name).index for name in ("x", "y")] == out[:2]
+        assert c.ask(robot="x").index == out[0] and c.status()["pending_robots"][:2] == ["x", "y"]

@@ -161,6 +161,7 @@ def create_app(run: ServedRun, *, token: str | None = None, loopback: bool = Tru
             figures.want()
 
     async def guarded(call, request, *, body: bool):
+        version = run.version
         try:
             payload = await _read_json(request) if body else {}
             answer, timing = await asyncio.get_running_loop().run_in_executor(run.executor, call, payload)
@@ -172,6 +173,8 @@ def create_app(run: ServedRun, *, token: str | None = None, loopback: bool = Tru
             else:
                 message = str(exc)
             retry = {"Retry-After": str(exc.retry_after)} if isinstance(exc, Busy) else None  # K trials out
+            if run.version != version:  # refused, but the run moved (K robots: Algorithm 1 ended as it was asked)
+                changed()
             return problem_response(HTTPProblem(status, message, retry))
         changed()
         return json_response(answer, headers=_timing_header(timing))

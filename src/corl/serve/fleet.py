@@ -113,7 +113,8 @@ def ask_robot(served, robot: str | None, raw: bool) -> tuple[dict, Timing]:
         if proposal is None:
             proposal = served.session.try_ask()  # committed before it is answered (a wait is noted)
             if proposal is None:
-                served._changed()  # Algorithm 1 may have ended as it was asked
+                if getattr(served.session.learner, "stop_reason", None) is not None:
+                    served._changed()  # Algorithm 1 ended as it was asked (once: the next asks stop above)
                 _refuse_finished(served)
                 raise fleet.busy()
             commit = served.session.commit_seconds
