@@ -6,8 +6,8 @@ A robot names itself in every ask (``{"robot": "arm-1"}``: 1-64 letters, digits,
 * a robot without one gets a pending trial no robot holds (a server killed between committing a trial and
   committing its robot, or a run started by ``corl run --robots K``), else a new trial of the learner
   (:meth:`corl.session.StoredRun.try_ask`), committed before it is answered;
-* when nothing can go out before a tell (K trials are out, or Algorithm 1 is in a sequential step with one
-  out) the answer is HTTP 503 with ``Retry-After: 1`` (:class:`Busy`): ask again after a tell. Once
+* when nothing can go out before a tell (K trials are out, or Algorithm 1 needs an outcome before its next
+  trial) the answer is HTTP 503 with ``Retry-After: 1`` (:class:`Busy`): ask again after a tell. Once
   Algorithm 1 has stopped with trials still out, a robot without a trial gets 409: nothing more comes.
 
 An ask without ``robot`` is refused (400): with K robots the server could not hand a lost answer's trial
@@ -88,7 +88,7 @@ class Fleet:
             return Busy(f"{n} trials are out ({self.describe()}), one per robot of {self.robots}; ask again after "
                         "a tell")
         return Busy(f"no trial can go out before a tell: Algorithm 1 waits for the outcome of {self.describe()} "
-                    f"(only its black-box step hands out up to {self.robots} at once); ask again after a tell")
+                    f"(it hands out up to {self.robots} at once only where its steps allow); ask again after a tell")
 
     def status(self) -> dict:
         """What GET /status adds with K > 1 robots."""
