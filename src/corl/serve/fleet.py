@@ -119,6 +119,7 @@ def ask_robot(served, robot: str | None, raw: bool) -> tuple[dict, Timing]:
                 raise fleet.busy()
             commit = served.session.commit_seconds
             served.records.append(TrialRecord(proposal, None, "", None))
+            fleet.hold(proposal, None)  # out, held by no robot until its name is committed (as after a restart)
         t1 = time.perf_counter()
         served.db.set_holder(run, proposal.index, robot)  # which robot has it: a restart hands it back
         commit += time.perf_counter() - t1
