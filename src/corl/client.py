@@ -92,7 +92,10 @@ class Client:
     token : the server's token (the content of its ``--token-file``), or None.
     raw : ask for the raw parameters w instead of a joint trajectory (a task without ``reference()``).
     timeout : seconds one request may take (an ask computes the next trial: give it time).
-    retry_for : seconds to keep retrying a request whose connection failed (0: fail at once).
+    retry_for : seconds to keep retrying a request whose connection failed, or that the server answered
+        503 with ``Retry-After`` (busy; with several robots, all trials out): 0 fails at once.
+    robot : this robot's name, sent with every ask (``corl serve --robots K``: 1-64 of ``[A-Za-z0-9_.-]``);
+        ``ask(robot=...)`` overrides it.
 
     Notes
     -----
@@ -101,7 +104,7 @@ class Client:
     """
 
     def __init__(self, url: str, token: str | None = None, *, raw: bool = False, timeout: float = 600.0,
-                 retry_for: float = 60.0) -> None:
+                 retry_for: float = 60.0, robot: str | None = None) -> None:
         text("Client(url)", url, spaces=False)
         parts = urlsplit(url)
         try:
@@ -117,19 +120,26 @@ class Client:
         self.raw = flag("Client(raw)", raw)
         self.timeout = number("Client(timeout)", timeout, low=0.0, low_open=True)
         self.retry_for = number("Client(retry_for)", retry_for, low=0.0)
+        self.robot = _robot("Client(robot)", robot)
         self._conn: http.client.HTTPConnection | None = None
         self._trial: Trial | None = None
         self._last: dict | None = None  # the latest status the server sent (a tell's answer carries it)
 
     # -- the learner's interface ---------------------------------------------------------------
-    def ask(self, context=None) -> Trial:
+    def ask(self, context=None, *, robot: str | None = None) -> Trial:
         """The next trial (the pending one again, when it was not told yet).
 
         ``context`` (k,): the scene the robot is in, for a task with contexts; the server then learns
         there (a new run that starts from every scene the store learned, or the scene's unfinished
         run). Refused while a trial of another scene is pending. None: the run the server serves now.
+        ``robot``: the robot asking (default the client's ``robot``), for a server of several robots
+        (``corl serve --robots K``): its own pending trial again, or a new one. While K trials are out
+        the server answers 503 and this call waits and asks again, for up to ``retry_for`` seconds.
         """
+        robot = self.robot if robot is None else _robot("ask(robot)", robot)
         body = {"raw": True} if self.raw else {}
+        if robot is not None:
+            body["robot"] = robot
         if context is not None:
             try:
                 values = np.asarray(context, dtype=float).reshape(-1)
@@ -269,6 +279,15 @@ class Client:
                 raise StateError(message)
             raise ServerError(message, status)  # 401, 413, 415; 503 (the store, the learner; busy); 500 (the task)
         return answer
+
+
+def _robot(what: str, name) -> str | None:
+    """A robot's name (1-64 of ``[A-Za-z0-9_.-]``), or None; else one InputError."""
+    import re
+
+    if name is not None and not (isinstance(name, str) and re.fullmatch(r"[A-Za-z0-9_.-]{1,64}", name)):
+        raise InputError(f"{what} must be a name of 1 to 64 letters, digits, '_', '.' or '-', got {name!r:.80}")
+    return name
 
 
 def _retry_after(response: http.client.HTTPResponse) -> float | None:

@@ -32,6 +32,9 @@ def serve(
     video: bool = typer.Option(True, "--video/--no-video", help="render the last told trial in the simulator for "
                                                                  "the dashboard (tasks that render)"),
     access_log: bool = typer.Option(False, "--access-log", help="log every request on stderr"),
+    robots: Optional[int] = typer.Option(None, "--robots", help="K robots of a new run: up to K trials out at once, "
+                                                                 "each robot names itself in its asks (default 1; "
+                                                                 "with a run in the store, only its K)"),
 ) -> None:
     """Serve the learner over HTTP (POST /ask, POST /tell, GET /status, /trials) with a live dashboard at /."""
     from corl.errors import CorlError, MissingExtraError
@@ -39,6 +42,8 @@ def serve(
     check_args(task=("--task", task), seed=("--seed", seed), rate=("--rate", rate), store=("--store", store))
     if not 0 <= port <= 65535:
         fail(f"--port must be in 0..65535, got {port}")
+    if robots is not None and not 1 <= robots <= 64:
+        fail(f"--robots must be an integer in [1, 64], got {robots}")
     try:
         from corl.serve import check_bind, read_token, serve_forever
     except MissingExtraError as exc:
@@ -52,7 +57,7 @@ def serve(
         token = None if token_file is None else read_token(token_file)
         check_bind(host, token)
         serve_forever(store, task, method=method, seed=seed, host=host, port=port, token=token, rate=rate,
-                      video=video, access_log=access_log, ready=_announce)
+                      video=video, access_log=access_log, ready=_announce, robots=robots)
     except CorlError as exc:
         fail(str(exc))
     except OSError as exc:
@@ -62,6 +67,7 @@ def serve(
 def _announce(url: str, status: dict) -> None:
     """The first line on stdout: where the server listens (a script reads it; --port 0 picks the port)."""
     typer.echo(json.dumps({"url": url, "run": status["run"], "task": status["task"], "method": status["method"],
-                           "trials": status["trials"], "done": status["done"]}))
+                           "trials": status["trials"], "done": status["done"],
+                           **({"robots": status["robots"]} if "robots" in status else {})}))
     typer.echo(f"corl serve: run {status['run']} ({status['task']}, {status['method']}), {status['trials']} trials "
                f"told; dashboard and API at {url} - Ctrl-C stops", err=True)

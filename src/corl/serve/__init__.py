@@ -65,7 +65,7 @@ def _url(sock: socket.socket, host: str) -> str:
 
 
 def _server(store, task: str, *, method, seed, host: str, port: int, token, rate: float, video: bool,
-            access_log: bool, limits: ServeLimits | None):
+            access_log: bool, limits: ServeLimits | None, robots: int | None = None):
     """``(uvicorn.Server, socket, ServedRun, url)``: listening, the run replayed, nothing served yet."""
     _require()
     import uvicorn
@@ -81,7 +81,7 @@ def _server(store, task: str, *, method, seed, host: str, port: int, token, rate
     check_bind(host, token)
     sock = _listen(host, port)
     try:
-        run = ServedRun(Path(store), task, method=method, seed=seed, rate=rate)
+        run = ServedRun(Path(store), task, method=method, seed=seed, rate=rate, robots=robots)
     except BaseException:
         sock.close()
         raise
@@ -110,12 +110,13 @@ def _server(store, task: str, *, method, seed, host: str, port: int, token, rate
 def serve_forever(store, task: str, *, method: str | None = None, seed: int | None = None, host: str = "127.0.0.1",
                   port: int = 8765, token: str | None = None, rate: float = 100.0, video: bool = True,
                   access_log: bool = False, ready: Callable[[str, dict], None] | None = None,
-                  limits: ServeLimits | None = None) -> None:
+                  limits: ServeLimits | None = None, robots: int | None = None) -> None:
     """Serve the store's latest run (or a new one) of ``task`` until SIGINT/SIGTERM; ``ready(url, status)``
-    is called once the socket listens; ``limits``: deadlines and caps (default ``ServeLimits()``).
-    Raises CorlError (a refused run or bind) or OSError (the port)."""
+    is called once the socket listens; ``limits``: deadlines and caps (default ``ServeLimits()``);
+    ``robots``: K of a new run, up to K trials out, one per robot (:mod:`corl.serve.fleet`; None: 1, or the
+    stored run's). Raises CorlError (a refused run or bind) or OSError (the port)."""
     server, sock, run, url = _server(store, task, method=method, seed=seed, host=host, port=port, token=token,
-                                     rate=rate, video=video, access_log=access_log, limits=limits)
+                                     rate=rate, video=video, access_log=access_log, limits=limits, robots=robots)
     try:
         if ready is not None:
             ready(url, run.status)
@@ -128,10 +129,11 @@ def serve_forever(store, task: str, *, method: str | None = None, seed: int | No
 @contextlib.contextmanager
 def background(store, task: str, *, method: str | None = None, seed: int | None = None, port: int = 0,
                token: str | None = None, rate: float = 100.0, video: bool = False, timeout: float = 60.0,
-               limits: ServeLimits | None = None):
+               limits: ServeLimits | None = None, robots: int | None = None):
     """A server on 127.0.0.1 in a thread of this process; yields its URL and stops it on exit."""
     server, sock, run, url = _server(store, task, method=method, seed=seed, host="127.0.0.1", port=port,
-                                     token=token, rate=rate, video=video, access_log=False, limits=limits)
+                                     token=token, rate=rate, video=video, access_log=False, limits=limits,
+                                     robots=robots)
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, name="corl-serve", daemon=True)
     try:
         thread.start()

@@ -2,9 +2,11 @@
 
 =========================  =========================================================================
 ``POST /ask``              the next trial (the pending one while one is pending); ``{"raw": true}``
-                           for the raw parameters w of a task without ``reference()``
+                           for the raw parameters w of a task without ``reference()``; with
+                           ``--robots K``, ``{"robot": "name"}``: that robot's trial (:mod:`corl.serve.fleet`)
 ``POST /tell``             ``{"trial": i, "success": bool, "return": float | null, "info": {...}}``
-``GET /status``            trials, failures, pending, best, done, stop_reason
+``GET /status``            trials, failures, pending, best, done, stop_reason (K robots: pending_trials,
+                           pending_robots, robots)
 ``GET /trials?since=k``    the trials from index k on
 ``GET /events``            server-sent events: ``status`` on every change, ``figures`` when redrawn
 ``GET /figures/NAME.png``  the dashboard's figures (``trials``, ``return_map``), drawn as ``corl report`` draws
@@ -27,6 +29,7 @@ import sys
 from importlib import resources
 
 from corl.errors import CorlError, InputError
+from corl.serve.fleet import Busy
 from corl.serve.guard import MAX_BODY_BYTES, Guard, HTTPProblem
 from corl.serve.responses import json_response, one_line, problem_response
 from corl.serve.run import Broken, Conflict, ServedRun, TaskCodeError
@@ -127,7 +130,7 @@ def _status_of(exc: BaseException) -> int:
         return exc.status
     if isinstance(exc, Conflict):
         return 409
-    if isinstance(exc, (Broken, StoreError)):
+    if isinstance(exc, (Broken, StoreError, Busy)):
         return 503
     if isinstance(exc, TaskCodeError):
         return 500
@@ -158,6 +161,7 @@ def create_app(run: ServedRun, *, token: str | None = None, loopback: bool = Tru
             figures.want()
 
     async def guarded(call, request, *, body: bool):
+        version = run.version
         try:
             payload = await _read_json(request) if body else {}
             answer, timing = await asyncio.get_running_loop().run_in_executor(run.executor, call, payload)
@@ -168,7 +172,10 @@ def create_app(run: ServedRun, *, token: str | None = None, loopback: bool = Tru
                 message = f"internal error ({type(exc).__name__}: {exc}); the store keeps every told trial"
             else:
                 message = str(exc)
-            return problem_response(HTTPProblem(status, message))
+            retry = {"Retry-After": str(exc.retry_after)} if isinstance(exc, Busy) else None  # K trials out
+            if run.version != version:  # refused, but the run moved (K robots: Algorithm 1 ended as it was asked)
+                changed()
+            return problem_response(HTTPProblem(status, message, retry))
         changed()
         return json_response(answer, headers=_timing_header(timing))
 

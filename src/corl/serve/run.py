@@ -13,6 +13,9 @@ repeat any request after a lost response or a server restart:
   with the same outcome is answered again (``"repeated": true``); another outcome for it, or a trial
   that is not pending, is a :class:`Conflict` (HTTP 409).
 
+With K robots (``corl serve --robots K``, :mod:`corl.serve.fleet`) each robot names itself in its asks and
+gets its own pending trial again, and ``tell`` takes any pending trial by its index.
+
 Reopened on the same store after a kill, the run replays its trials (:meth:`StoredRun.open`) and
 goes on exactly where it stopped: nothing lost, nothing run twice.
 """
@@ -22,41 +25,23 @@ from __future__ import annotations
 import json
 import math
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from corl.errors import CorlError, InputError, StateError, TaskError
+from corl.errors import InputError, TaskError
 from corl.problem import Outcome, Proposal
+from corl.serve.fleet import Fleet, ask_robot, check_robot
+from corl.serve.problems import Broken, Conflict, TaskCodeError, Timing
+from corl.serve.problems import reason as _reason
 from corl.store.records import TrialRecord
 
-__all__ = ["ServedRun", "Conflict", "Broken", "TaskCodeError", "CODE_KEYS"]
+__all__ = ["ServedRun", "Conflict", "Broken", "TaskCodeError", "Timing", "CODE_KEYS"]
 
 # Body keys that would name code or a run: the task is given on the server's command line only.
 CODE_KEYS = ("task", "task_spec", "spec", "module", "factory", "method", "seed", "store", "path")
-_ASK_KEYS = ("raw", "context")
+_ASK_KEYS = ("raw", "context", "robot")
 _TELL_KEYS = ("trial", "success", "return", "info", "run")
-
-
-class Conflict(StateError):
-    """A request that does not fit the run's state (HTTP 409): a tell of a trial that is not pending."""
-
-
-class TaskCodeError(CorlError):
-    """The task's own code failed on a trial (its ``reference()``): not the request's fault (HTTP 500)."""
-
-
-class Broken(CorlError):
-    """The learner raised after a commit: the server answers nothing more until it is restarted."""
-
-
-@dataclass(frozen=True)
-class Timing:
-    """Seconds one call spent computing (the learner, the reference) and committing to the store."""
-
-    compute: float = 0.0
-    commit: float = 0.0
 
 
 class ServedRun:
@@ -78,20 +63,22 @@ class ServedRun:
     method, seed : of a new run (defaults CORL+PIBU for a built-in task, CORL for your own; seed 0);
         with a run in the store, only that run's values are accepted.
     rate : Hz of the joint trajectories handed out (``task.reference(w, rate)``).
+    robots : K of a new run, up to K trials out at once, one per robot (:mod:`corl.serve.fleet`); None: 1, or
+        the stored run's K (another value is refused).
     """
 
     def __init__(self, store_path: str | Path, task_spec: str, *, method: str | None = None,
-                 seed: int | None = None, rate: float = 100.0) -> None:
+                 seed: int | None = None, rate: float = 100.0, robots: int | None = None) -> None:
         from concurrent.futures import ThreadPoolExecutor
 
         self.executor = ThreadPoolExecutor(1, thread_name_prefix="corl-learner")
         try:
-            self.executor.submit(self._open, store_path, task_spec, method, seed, rate).result()
+            self.executor.submit(self._open, store_path, task_spec, method, seed, rate, robots).result()
         except BaseException:
             self.executor.shutdown()
             raise
 
-    def _open(self, store_path, task_spec: str, method, seed, rate) -> None:
+    def _open(self, store_path, task_spec: str, method, seed, rate, robots) -> None:
         from corl.methods import DEFAULT_METHOD, METHODS
         from corl.session import StoredRun, check_rate
         from corl.store import RunStatus, RunStore, StoreError, latest_run
@@ -108,7 +95,8 @@ class ServedRun:
         self._method, self._parked = method, {}  # run id -> the state of a run the robot left (another scene)
         info = latest_run(self.store_path)  # read-only: a refused start leaves the store's bytes as they were
         if info is not None:
-            for flag, given, stored in (("--method", method, info.method), ("--seed", seed, info.seed)):
+            for flag, given, stored in (("--method", method, info.method), ("--seed", seed, info.seed),
+                                        ("--robots", robots, info.config.get("robots", 1))):
                 if given is not None and given != stored:
                     raise InputError(f"{flag} {given} differs from run {info.id} in {self.store_path} ({stored}); "
                                      "drop the flag to serve that run, or give another --store")
@@ -119,8 +107,10 @@ class ServedRun:
             seed = 0 if seed is None else seed
             self.task = load_task(task_spec, seed=seed)
             self.seed = seed
+            if (robots or 1) > 1:  # SEIB keeps the K trials out apart (corl run --robots does the same)
+                method = method or "CORL"
             method = method or ("CORL+PIBU" if task_spec in BUILTIN_TASKS else DEFAULT_METHOD)
-            session = StoredRun.new(self.task, task_spec=task_spec, method=method, seed=seed)
+            session = StoredRun.new(self.task, task_spec=task_spec, method=method, seed=seed, robots=robots or 1)
         self.db = RunStore(self.store_path)  # the writer lock, held until close()
         try:
             latest = self.db.latest_run()
@@ -147,8 +137,12 @@ class ServedRun:
         own = getattr(self.task, "context", None)
         self.own_scene = c is None or own is None or np.array_equal(c, np.asarray(own, dtype=float))
         self.scene = self.task if self.own_scene else _scene(self.task, c)  # what reference() and the robot see
+        self.robots = int(self.info.config.get("robots", 1))
+        self.fleet = None if self.robots == 1 else Fleet(self.db, session.run_id, self.robots)
         pending = self.db.pending(session.run_id)
         self.pending: Proposal | None = None if pending is None else pending.proposal
+        if self.fleet is not None:  # the oldest of the trials out, for what reads one
+            self.pending = self.fleet.oldest
         self.records = self.db.trials(session.run_id)  # every trial, oldest first; outcome None while pending
         self._J = {i: _finite(J) for i, J in getattr(session.learner, "J_history", ()) or ()}
         self._best_told = None
@@ -189,7 +183,13 @@ class ServedRun:
         raw = _check_keys(body, _ASK_KEYS, "ask").get("raw", False)
         if not isinstance(raw, bool):
             raise InputError(f"'raw' must be true or false, got {raw!r}")
+        robot = check_robot(body.get("robot"))  # with one robot, a name changes nothing
         self._usable()
+        if self.fleet is not None:
+            if "context" in body:
+                raise InputError(f"this server serves {self.robots} robots in one scene; an ask names no context "
+                                 "with several robots (serve a run in a context with one robot)")
+            return ask_robot(self, robot, raw)
         t0 = time.perf_counter()
         if "context" in body:
             from corl.serve.scenes import requested_context
@@ -233,9 +233,11 @@ class ServedRun:
         try:
             t, q = trajectory_of(self.scene, proposal.w, self.rate)
         except (Exception, SystemExit) as exc:  # the task's reference(), or its contract (NaN, shapes)
+            handed = ("nothing was handed out" if self.fleet is None
+                      else "the trial stays pending for the robot that asked")
             raise TaskCodeError(
                 f"the task's reference(w, rate) failed on trial {proposal.index} ({type(exc).__name__}: {exc}); the "
-                "learner waits for this trial: fix the task and restart corl serve (nothing was handed out), or ask "
+                f"learner waits for this trial: fix the task and restart corl serve ({handed}), or ask "
                 "with {\"raw\": true} and tell its outcome") from None
         names = getattr(self.task, "joint_names", None) or [f"q{j}" for j in range(q.shape[1])]
         return {"t": t.tolist(), "q": q.tolist(), "joint_names": list(names), "rate": self.rate}
@@ -270,14 +272,22 @@ class ServedRun:
         t0 = time.perf_counter()
         if index < len(self.records) and self.records[index].outcome is not None:
             return self._repeated(index, outcome), Timing()
-        if self.pending is None or index != self.pending.index:
+        if self.fleet is not None:
+            if index not in self.fleet.out:
+                now = (f"the pending ones are {self.fleet.describe()}" if self.fleet.out
+                       else "no trial is pending: POST /ask first")
+                raise Conflict(f"trial {index} is not pending, so it cannot be told: {now}")
+        elif self.pending is None or index != self.pending.index:
             now = ("no trial is pending: POST /ask first" if self.pending is None
                    else f"the pending trial is {self.pending.index}")
             raise Conflict(f"trial {index} is not pending, so it cannot be told: {now}")
         try:
-            self.session.tell(outcome)  # committed, then the learner is told
+            if self.fleet is None:
+                self.session.tell(outcome)  # committed, then the learner is told
+            else:
+                self.session.tell(outcome, index)
         except Exception as exc:
-            if self.db.pending(self.session.run_id) is not None:
+            if self._still_pending(index):
                 raise  # refused before anything was written (a failed demonstration, ...)
             if isinstance(exc, TaskError):  # the task's code: a restart meets it again; the message says what helps
                 self.broken = str(exc)
@@ -298,10 +308,16 @@ class ServedRun:
         history = getattr(self.session.learner, "J_history", None) or [(None, None)]
         if history[-1][0] == index:
             self._J[index] = _finite(history[-1][1])
-        self.records[index] = TrialRecord(self.pending, outcome, "", "")
+        proposal = self.pending if self.fleet is None else self.fleet.told(index)
+        self.records[index] = TrialRecord(proposal, outcome, "", "")
         self._note_best(self.records[index])
-        self.pending = None
+        self.pending = None if self.fleet is None else self.fleet.oldest
         self._changed()
+
+    def _still_pending(self, index: int) -> bool:
+        if self.fleet is None:
+            return self.db.pending(self.session.run_id) is not None
+        return any(r.index == index for r in self.db.pending_trials(self.session.run_id))
 
     def _note_best(self, record: TrialRecord) -> None:
         """Keep ``_best_told``: the successful trial with the highest return (the first of equal ones)."""
@@ -402,6 +418,7 @@ class ServedRun:
             "theta_dim": self.task.theta_bounds.dim, "version": self.version, "broken": self.broken,
             "context": self.info.config.get("context"),  # the scene of the run served now (None: no contexts)
             "runs": runs_summary(self.db),  # every run of the store, each with its scene
+            **({} if self.fleet is None else self.fleet.status()),  # K > 1 robots: the trials out, who holds them
         }
 
 
@@ -437,10 +454,3 @@ def _row(p: Proposal, o: Outcome | None, J: float | None) -> dict:
 def _finite(x) -> float | None:
     return float(x) if x is not None and math.isfinite(float(x)) else None
 
-
-def _reason(session) -> str:
-    if session.ended is not None:  # corl run --resume --end-at-error
-        e = session.ended
-        return f"ended at trial {e['trial']}, where the task's {e['member']} raised {e['error']}"
-    reason = getattr(session.learner, "stop_reason", None)
-    return f"stop reason {getattr(reason, 'value', reason)}"

@@ -32,7 +32,8 @@ its asks and tells (:mod:`corl.store.meta`) so that replay meets every trial as 
 Schema (format 1; ``PRAGMA user_version`` and ``meta.format_version`` hold the format)
 ------------------------------------------------------------------------------------------
 meta(key, value)                  format_version, created, created_by; best:<run>, end:<run> (JSON);
-                                  pattern:<run> (K robots: letters a, t, w)
+                                  pattern:<run> (K robots: letters a, t, w); robot:<run>:<index>
+                                  (corl serve --robots K: the robot a trial was handed to)
 runs(id, created, task, method, seed, config, versions, status)    config, versions: JSON
 trials(run_id, trial_index, step, round, w, w_shape, theta, theta_shape, proposed_at)
 outcomes(run_id, trial_index, success, return_, info, told_at)     return_ NULL when unobserved

@@ -14,6 +14,10 @@ proposes depends on how many outcomes it had when it was asked. The store keeps 
 ``w``  the learner was asked and had nothing to hand out before a tell (``try_ask`` returned None);
        asking can move a learner (its method decides a next point), so replay asks there too
 =====  =========================================================================================
+
+``corl serve --robots K`` also keeps which robot each trial was handed to, under ``robot:<run id>:<index>``
+(the robot's name as it asked, :meth:`KeptByRun.set_holder`), so that a restarted server hands a robot's
+pending trial back to that robot. A store without these keys is read as one whose trials no robot holds.
 """
 
 from __future__ import annotations
@@ -115,6 +119,25 @@ class KeptByRun:
         run_id = self.run(run_id).id
         return [int(r[0]) for r in self._read("SELECT trial_index FROM outcomes WHERE run_id = ? ORDER BY rowid",
                                               (run_id,))]
+
+    def set_holder(self, run_id: int, index: int, robot: str) -> None:
+        """Keep that trial ``index`` of run ``run_id`` was handed to the robot named ``robot`` (corl serve)."""
+        run_id, index = _as_int(run_id, what="run id"), _as_int(index, what="trial index")
+        with self._transaction(f"keep the robot of trial {index} of run {run_id}") as db:
+            self._run_status(db, run_id)
+            db.execute("INSERT OR REPLACE INTO meta (key, value) VALUES (?, ?)", (f"robot:{run_id}:{index}", str(robot)))
+
+    def holders(self, run_id: int) -> dict[int, str]:
+        """Trial index -> the robot it was handed to, for the trials of run ``run_id`` kept by :meth:`set_holder`."""
+        run_id = _as_int(run_id, what="run id")
+        prefix = f"robot:{run_id}:"
+        rows = self._read("SELECT key, value FROM meta WHERE key >= ? AND key < ?", (prefix, prefix[:-1] + ";"))
+        out = {}
+        for key, value in rows:
+            tail = str(key)[len(prefix):]
+            if tail.isdigit():
+                out[int(tail)] = str(value)
+        return out
 
     def pending_trials(self, run_id: int) -> list:
         """Every trial proposed and not told yet, in index order (up to the run's K robots)."""

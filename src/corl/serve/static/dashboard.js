@@ -26,7 +26,10 @@ function showStatus(s) {
     `run ${r.run} ${scene(r.context)} (${r.told} told, ${r.status})`).join("; ") : "");
   setText("trials", s.trials);
   setText("failures", s.failures);
-  setText("pending", s.pending === null ? "none" : s.pending);
+  const out = s.pending_trials;  // corl serve --robots K: every trial out, and the robot holding each
+  const held = out ? out.map((i, k) => (s.pending_robots[k] === null ? `${i}` : `${i} (${s.pending_robots[k]})`)) : [];
+  setText("pending", out ? (out.length ? `${held.join(", ")} of ${s.robots} robots` : "none") :
+    (s.pending === null ? "none" : s.pending));
   const told = s.best_observed;
   setText("best-told", told ? fmt(told.return) : "\u2013");
   setText("best-told-detail", told ? `trial ${told.trial}, theta ${JSON.stringify(told.theta.map((v) => +v.toFixed(4)))}` : "");
@@ -36,7 +39,8 @@ function showStatus(s) {
   const state = $("state");
   state.classList.toggle("done", s.done);
   state.textContent = s.done ? `finished: ${s.stop_reason}` :
-    (s.pending === null ? "waiting for the next ask" : `trial ${s.pending} is on the robot`);
+    (s.pending === null ? "waiting for the next ask" :
+      (out && out.length > 1 ? `trials ${out.join(", ")} are on the robots` : `trial ${s.pending} is on the robot`));
   state.classList.toggle("offline", Boolean(s.broken));
   if (s.broken) state.textContent = `stopped: ${s.broken}; restart corl serve on the same store`;
   document.body.dataset.trials = s.trials;
