@@ -12,7 +12,8 @@ Where the paper's loop can hand out several trials, it does; where it is sequent
   (the sequential loop would not have run them). Without ``rollout_every_step`` step 1 has one trial;
 * step 2, the black-box step over theta, hands out up to K trials: its method is asked with the
   others pending (:attr:`corl.optimizers.base.BlackBoxOptimizer.max_pending`; ``CORL``'s SEIB keeps
-  each proposal safe under the told data and apart from the pending ones), and the outcomes are told
+  each proposal safe under the told data and apart from the pending ones, with at most one out
+  whose success g_S doubts, :data:`corl.optimizers.pending.P_PENDING`), and the outcomes are told
   in whatever order the robots finish. A theta whose projection is infeasible, or whose w failed
   before, is told at once, without a rollout, as in :class:`corl.learner.CORL`. The step ends once
   its method stops (or the budget is spent) and no trial is out; ``theta_step_stop`` does not apply.

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["AwayFromPending", "apart", "PENDING_RADIUS", "PENDING_FALLBACK", "P_PENDING"]
+__all__ = ["AwayFromPending", "apart", "for_fleet", "PENDING_RADIUS", "PENDING_FALLBACK", "P_PENDING"]
 
 #: Several trials out at once: no proposal within this many of g_S's length scales (per dimension, an
 #: ellipsoid) of a pending trial, where that trial's outcome will soon tell most of what another would.
@@ -66,3 +66,20 @@ def apart(acquisition, out: np.ndarray, classifier, bounds):
     lengths = getattr(getattr(getattr(classifier, "_model", None), "kernel_", None), "lengthscales", None)
     radius = PENDING_FALLBACK * bounds.width if lengths is None else PENDING_RADIUS * lengths * np.ones(len(out[0]))
     return AwayFromPending(acquisition, out, radius)
+
+
+def for_fleet(acquisition, out: np.ndarray, classifier, bounds, failed=None, tolerance: float = 0.0):
+    """``acquisition`` as a safe method asks it with the trials ``out`` (p, m) pending:
+
+    * 0 within ``tolerance`` box widths of every ``failed`` point (k, m), if given: never asked again;
+    * while a pending trial has g_S's p below :data:`P_PENDING`, -inf where p is below it too (at
+      most one trial whose success g_S doubts is out at a time);
+    * kept apart from the pending trials (:func:`apart`).
+    """
+    from corl.acquisition.guarded import Guarded
+
+    if failed is not None and len(failed):
+        acquisition = AwayFromPending(acquisition, failed, tolerance * bounds.width * np.sqrt(bounds.dim))
+    if len(out) and np.any(classifier.predict_proba(out) < P_PENDING):
+        acquisition = Guarded(acquisition, lambda P: classifier.predict_proba(np.asarray(P, float)) >= P_PENDING)
+    return apart(acquisition, out, classifier, bounds)

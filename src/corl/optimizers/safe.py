@@ -27,7 +27,7 @@ from corl.gp.fitting import fit_classifier
 from corl.optimizers.base import StopReason, model_scale
 from corl.optimizers.bo import BOConfig, StopRule, _BayesOpt, _stop
 from corl.optimizers.gpconfig import FITTED_CLASSIFIER, FITTED_REGRESSION
-from corl.optimizers.pending import P_PENDING, AwayFromPending, apart
+from corl.optimizers.pending import for_fleet
 from corl.problem import Bounds
 
 __all__ = ["SafeBOOptimizer", "SAFE_BO_CONFIG", "LearnersBest", "return_scale", "P_TRUSTED"]
@@ -415,18 +415,10 @@ class SafeBOOptimizer(_BayesOpt):
         return maximize(self.last_acquisition, self.bounds, rng=self.rng, config=self._maximizer, extra=self.X_)
 
     def _shaped(self, acquisition):
-        """``acquisition`` masked by the scene's guard, kept apart from pending trials (:func:`apart`)."""
-        if self.guard is not None:
-            acquisition = Guarded(acquisition, self.guard.allowed(*self._safety_data()))
-        failed = self.X_[~self.success_]
-        if not self.recheck_failures and len(failed):  # a failed point is never asked again (the answer's box)
-            acquisition = AwayFromPending(acquisition, failed,
-                                          self.answer_tolerance * self.bounds.width * np.sqrt(self.bounds.dim))
-        classifier = self._models[2]
-        if len(self.pending_) and np.any(classifier.predict_proba(self.pending_) < P_PENDING):
-            # a trial whose success g_S doubts is out already: another robot's goes only where g_S is sure
-            acquisition = Guarded(acquisition, lambda P: classifier.predict_proba(np.asarray(P, float)) >= P_PENDING)
-        return apart(acquisition, self.pending_, self._models[2], self.bounds)
+        """``acquisition`` masked by the scene's guard, then :func:`~corl.optimizers.pending.for_fleet`."""
+        acquisition = acquisition if self.guard is None else Guarded(acquisition, self.guard.allowed(*self._safety_data()))
+        return for_fleet(acquisition, self.pending_, self._models[2], self.bounds,  # failed: never asked again
+                         None if self.recheck_failures else self.X_[~self.success_], self.answer_tolerance)
 
     def _stops(self, x, value) -> bool:
         return not value >= self.seib.stop_value or _stop(self.config.stop_rule, x, self.X_,
