@@ -53,9 +53,9 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("store", ("corl.store",)),  # the SQLite run store
     ("contexts", ("corl.contexts",)),  # one skill, many scenes: GPs over (theta, c), Skill.policy(c)
     ("session", ("corl.session",)),  # a learner bound to the store, exact resume
-    ("fleet", ("corl.fleet",)),  # a stored run's trials on K worker processes (corl run --robots)
     # experiments/, by what it produces: the bricks, then what is built of them
     ("experiments.base", ("corl.experiments.backends", "corl.experiments.figures", "corl.experiments.tables")),
+    ("fleet", ("corl.fleet",)),  # a stored run's trials on K worker processes or Ray actors (corl run --robots)
     ("experiments.sweep", ("corl.experiments.sweep", "corl.experiments.run_output")),  # ground truth; a run's folder
     ("experiments.studies", ("corl.experiments.synthetic", "corl.experiments.door",
                                                        "corl.experiments.contexts", "corl.experiments.parallel")),  # Fig. 1, Fig. 3

@@ -7,26 +7,32 @@ as they are: none is lost, none is proposed again. ``trial_seconds`` adds the ti
 slow simulator spends on each trial (``corl bench parallel``).
 
 The task is forked into each worker, so its rollout must be a pure function of ``w`` (a simulator);
-a real robot's task is driven through ``corl serve`` or ``corl ask``/``corl tell`` instead. Only the
-local backend exists: Ray and Dask are not done (InputError names them).
+a real robot's task is driven through ``corl serve`` or ``corl ask``/``corl tell`` instead.
+``backend="ray"``: K Ray actors (a local Ray of K CPUs, :func:`corl.experiments.backends.cluster`),
+each loading the task from its spec and seed (or, without a spec, unpickling the task) once and
+rolling out the trials sent to it. Dask is not done (InputError names it).
 """
 
 from __future__ import annotations
 
 import multiprocessing
 import os
+import pickle
+import queue
 import signal
 import time
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, ThreadPoolExecutor, wait
+from contextlib import ExitStack
+from importlib.util import find_spec
 from typing import Callable
 
 from corl import checks
-from corl.errors import InputError, RolloutError
+from corl.errors import InputError, MissingExtraError, RolloutError
 from corl.problem import Outcome, Proposal, Task
 
 __all__ = ["run_fleet", "BACKENDS"]
 
-BACKENDS = ("local",)  # processes on this machine; Ray actors and Dask workers are not done
+BACKENDS = ("local", "ray")  # processes on this machine, or Ray actors; Dask workers are not done
 _TASK: Task | None = None  # the task the workers fork with (set before the pool starts them)
 
 
@@ -48,24 +54,80 @@ def _rollout(w, seconds: float):
 def check_backend(backend: str) -> str:
     if backend not in BACKENDS:
         raise InputError(f"--backend {backend!r} is not available: corl runs several robots as local processes "
-                         f"only (--backend local); Ray and Dask backends are not done yet")
+                         f"(--backend local) or Ray actors (--backend ray); a Dask backend is not done yet")
+    if backend == "ray" and find_spec("ray") is None:
+        raise MissingExtraError("--backend ray needs Ray: pip install 'corl-skills[ray]'")
     return backend
 
 
+class _RayRobot:
+    """One robot on Ray: the task, loaded once, and its rollouts."""
+
+    def __init__(self, task_spec, seed, task) -> None:
+        from corl.tasks.registry import load_task
+
+        self.task = load_task(task_spec, seed=seed) if task_spec is not None else task
+
+    def rollout(self, w, seconds: float):
+        outcome = self.task.rollout(w)
+        if seconds > 0:
+            time.sleep(seconds)
+        return outcome
+
+
+class _RayPool:
+    """K Ray actors behind ``submit(fn, w, seconds)`` -> a concurrent.futures.Future (a thread per robot
+    waits on its actor). ``fn`` is ignored: the actor rolls out its own task."""
+
+    def __init__(self, stack: ExitStack, task: Task, robots: int, task_spec: str | None, seed: int) -> None:
+        from corl.experiments.backends import cluster
+
+        stack.enter_context(cluster("ray", robots))
+        import ray
+
+        if task_spec is None:
+            try:
+                pickle.dumps(task)
+            except Exception as exc:
+                raise InputError(f"--backend ray sends the task to Ray workers, and it cannot be pickled "
+                                 f"({type(exc).__name__}: {exc}); give its spec, or use --backend local") from exc
+        actor = ray.remote(num_cpus=1)(_RayRobot)
+        self.ray, self.free = ray, queue.SimpleQueue()
+        for _ in range(robots):
+            self.free.put(actor.remote(task_spec, seed, task if task_spec is None else None))
+        self.threads = stack.enter_context(ThreadPoolExecutor(max_workers=robots))
+
+    def _call(self, w, seconds):
+        robot = self.free.get()
+        try:
+            return self.ray.get(robot.rollout.remote(w, seconds))
+        finally:
+            self.free.put(robot)
+
+    def submit(self, fn, w, seconds):
+        return self.threads.submit(self._call, w, seconds)
+
+
 def run_fleet(session, task: Task, *, robots: int, backend: str = "local", trial_seconds: float = 0.0,
-              callback: Callable[[Proposal, Outcome], None] | None = None) -> int:
+              callback: Callable[[Proposal, Outcome], None] | None = None, task_spec: str | None = None,
+              seed: int = 0) -> int:
     """Roll out ``session``'s trials (a :class:`corl.session.StoredRun`) on ``robots`` worker processes
-    until its learner is done; returns the number of trials told. A rollout that raises is a
-    :class:`RolloutError` (its trial, and those still out, stay pending in the store: resume goes on)."""
+    (or Ray actors, which load ``task_spec`` with ``seed``) until its learner is done; returns the number
+    of trials told. A rollout that raises is a :class:`RolloutError` (its trial, and those still out,
+    stay pending in the store: resume goes on)."""
     global _TASK
     robots = checks.integer("robots", robots, low=1)
     check_backend(backend)
     if not (isinstance(trial_seconds, (int, float)) and 0 <= trial_seconds < float("inf")):
         raise InputError(f"trial_seconds must be a finite number >= 0, got {trial_seconds!r}")
     _TASK, told, running = task, 0, {}
-    context = multiprocessing.get_context("fork")
-    with ProcessPoolExecutor(max_workers=robots, mp_context=context, initializer=_start_worker,
-                             initargs=(os.getpid(),)) as pool:
+    with ExitStack() as stack:
+        if backend == "ray":
+            pool = _RayPool(stack, task, robots, task_spec, seed)
+        else:
+            pool = stack.enter_context(ProcessPoolExecutor(
+                max_workers=robots, mp_context=multiprocessing.get_context("fork"), initializer=_start_worker,
+                initargs=(os.getpid(),)))
         def send(proposal: Proposal) -> None:
             running[pool.submit(_rollout, proposal.w, float(trial_seconds))] = proposal
 

@@ -249,8 +249,8 @@ def bench_parallel(
     robots: int = typer.Option(4, help="K, the robots of the second run (the first has one)"),
     trial_seconds: float = typer.Option(0.5, help="robot time each trial also takes, in seconds"),
     seed: int = typer.Option(0, help="seed of the task and the learner"),
-    backend: str = typer.Option("local", help="where the trials run: local (worker processes); Ray and Dask are "
-                                               "not done"),
+    backend: str = typer.Option("local", help="where the trials run: local (worker processes) or ray (a local "
+                                               "Ray's actors); Dask is not done"),
     out: Path = typer.Option(Path("results/parallel"), help="output folder for parallel.json and parallel.png"),
     rollout_every_step: Optional[bool] = typer.Option(
         None, "--rollout-every-step/--no-rollout-every-step", help="as corl run (default: the task's CORLConfig)"),

@@ -48,7 +48,7 @@ def run(
     robots: Optional[int] = typer.Option(
         None, "--robots", help="K simulated robots: up to K trials out at once, each in a worker process "
                                "(CORL's black-box step; default 1)"),
-    backend: str = typer.Option("local", help="where --robots run: local (processes); Ray and Dask are not done"),
+    backend: str = typer.Option("local", help="where --robots run: local (processes) or ray (a local Ray's actors); Dask is not done"),
     end_at_error: bool = typer.Option(
         False, "--end-at-error", help="with --resume: where the task's code raised on the run's last told trial, "
                                       "end the run there (every trial kept, none run) and write its summary"),
@@ -129,7 +129,8 @@ def run(
                 if info.config.get("robots", 1) > 1:
                     from corl.fleet import run_fleet
 
-                    run_fleet(session, the_task, robots=info.config["robots"], backend=backend, callback=tick)
+                    run_fleet(session, the_task, robots=info.config["robots"], backend=backend, callback=tick,
+                              task_spec=info.task, seed=seed)
                 else:
                     session.run(the_task, callback=tick)
                 tracker.update("trials", done=len(session.history), total=len(session.history), note="finished")

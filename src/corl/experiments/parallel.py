@@ -40,7 +40,8 @@ def parallel_run(task_spec: str, robots: int, seconds: float, seed: int, store_p
 
     with RunStore(store_path) as db:
         session.attach(db)
-        run_fleet(session, task, robots=robots, backend=backend, trial_seconds=seconds, callback=tick)
+        run_fleet(session, task, robots=robots, backend=backend, trial_seconds=seconds, callback=tick,
+                  task_spec=task_spec, seed=seed)
     history = session.history
     return {"wall_s": time.perf_counter() - t0, "trials": len(history),
             "failures": sum(not o.success for _, o in history),
