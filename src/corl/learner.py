@@ -276,6 +276,11 @@ class CORL:
             raise StateError(f"internal error: the learner was about to propose a w that already failed ({step})")
         return Proposal(index=len(self.history), w=w, theta=theta, step=step, round=self.rounds)
 
+    def _stays(self, w_next, w_i) -> bool:
+        """A chain's step (step 1, phase) ends: ``w_next`` moved under eps_w, or failed before (when rolled out)."""
+        cfg = self.config
+        return np.linalg.norm(w_next - w_i) < cfg.eps_w or (cfg.rollout_every_step and self.failed_before(w_next))
+
     def failed_before(self, w: np.ndarray) -> bool:
         """True when ``w`` (n,) is within ``eps_w`` of the w of a failed trial (the same policy)."""
         w = np.asarray(w, dtype=float)
@@ -359,15 +364,11 @@ class CORL:
         ahead: _Speculation | None = None  # solve() from w_i, started while w_i was rolled out
         for step in range(cfg.max_optimization_steps):
             # Eq. 8: w(i+1) = argmin J(w) s.t. h(w, theta*) = 0, ||w - w(i)|| < eps_max
-            if ahead is not None:
-                result, ahead = ahead.result(), None
-            else:
-                result = solve(problem, w_i, center=w_i, radius=self.eps_max, config=cfg.solver)
-            w_next = result.w
-            if np.linalg.norm(w_next - w_i) < cfg.eps_w:  # until ||w(i+1) - w(i)|| < eps_w
+            result = ahead.result() if ahead is not None else solve(problem, w_i, center=w_i, radius=self.eps_max,
+                                                                    config=cfg.solver)
+            ahead, w_next = None, result.w
+            if self._stays(w_next, w_i):  # until ||w(i+1) - w(i)|| < eps_w; a step that failed is never run again
                 break
-            if cfg.rollout_every_step and self.failed_before(w_next):
-                break  # this very step failed before: never run it again
             w_i = w_next
             if cfg.rollout_every_step:
                 proposal = self._proposal(w_i, theta_star, "optimization")
@@ -398,9 +399,7 @@ class CORL:
             if found is None:
                 break
             task, problem, w_next, J_next = found
-            if J_next >= J_i or np.linalg.norm(w_next - w_i) < cfg.eps_w:
-                break
-            if cfg.rollout_every_step and self.failed_before(w_next):
+            if J_next >= J_i or self._stays(w_next, w_i):
                 break
             w_i, J_i = w_next, J_next
             if cfg.rollout_every_step:

@@ -149,7 +149,7 @@ class ParallelCORL(CORL):
 
         def advance(w_i):  # Eq. 8 from the chain's last step: argmin J s.t. h = 0, ||w - w(i)|| < eps_max
             w_next = solve(problem, w_i, center=w_i, radius=self.eps_max, config=cfg.solver).w
-            return None if np.linalg.norm(w_next - w_i) < cfg.eps_w or self.failed_before(w_next) else w_next
+            return None if self._stays(w_next, w_i) else w_next
 
         def accept(w, r):
             best[:] = w, r
@@ -171,9 +171,7 @@ class ParallelCORL(CORL):
         def advance(state):  # one phase step from the chain's last: (task, problem, w, J), kept if it lowers J
             task, problem, w, J = state
             found = candidate(task, problem, w)
-            if found is None or found[3] >= J or np.linalg.norm(found[2] - w) < cfg.eps_w:
-                return None
-            return None if self.failed_before(found[2]) else found
+            return None if found is None or found[3] >= J or self._stays(found[2], w) else found
 
         def accept(state, r):
             best[:] = state[2], r
