@@ -27,6 +27,11 @@ derives the rest:
                (door past 0.3 rad, handle held) and ``return_of_force`` (``1 - F / 15 N``)
 
 Run it (from the repository root):  corl run benchmarks.door_from_recording:make_task --seed 0
+
+``python benchmarks/door_from_recording.py --sweep`` learns it once per h (every 0.1 s, and the
+fewest instants within ``tolerance`` of the path, :class:`RecordedTask`'s option) beside the
+hand-written door, and prints trials, failures, the learner's best return, J before and after, and
+one scale for both tasks' motions: the integral of the arm's squared joint accelerations (rad^2/s^3).
 """
 
 from __future__ import annotations
@@ -78,15 +83,67 @@ def method_settings():
                                           max_optimization_steps=60, max_rl_trials=60, max_phase_steps=20))
 
 
-def make_task():
-    """The door task derived from the recording."""
+def make_task(**options):
+    """The door task derived from the recording (``options``: ``spacing``, ``tolerance``, ...)."""
     robot = load_scene().robot
     contacts = find_contacts(robot, load_recording(RECORDING), "handle", grasp=True)
-    return DoorFromRecording(robot, contacts, return_, success, name="door_from_recording", directions=("-y",),
-                             hold_orientation=True, grip_bounds=GRIP, settings=method_settings())
+    options = {"name": "door_from_recording", "directions": ("-y",), "hold_orientation": True,
+               "grip_bounds": GRIP, "settings": method_settings(), **options}
+    return DoorFromRecording(robot, contacts, return_, success, **options)
+
+
+def acceleration_integral(task, w, arm: int = 7, points: int = 2000) -> float:
+    """The integral over the motion of the arm's squared joint accelerations (rad^2/s^3), by
+    finite differences of ``task.spline``'s positions: one scale for motions of different splines."""
+    import numpy as np
+
+    t = np.linspace(0.0, task.duration, points)
+    q = task.spline.positions(w, t)[:, :arm]
+    a = np.gradient(np.gradient(q, t, axis=0), t, axis=0)
+    return float(np.sum(a ** 2) * (t[1] - t[0]))
+
+
+def sweep() -> None:
+    """Learn the door once per h and print one line each (CORL, seed 0; the door's runs do not
+    depend on the seed)."""
+    import tempfile
+    import time
+
+    from corl.learner import cost_of
+    from corl.session import StoredRun
+    from corl.store import RunStore
+    from corl.tasks.door.task import DoorTask
+    from corl.versions import library_versions
+
+    cases = [("hand-written door (corl run door)", lambda: DoorTask(seed=0)),
+             ("derived, every 0.1 s (default)", make_task)]
+    cases += [(f"derived, spacing {sp:g} s, tolerance {tol * 1e3:g} mm",
+               lambda sp=sp, tol=tol: make_task(spacing=sp, tolerance=tol))
+              for sp in (0.1, 0.05) for tol in (0.0005, 0.001, 0.002)]
+    print(", ".join(f"{k} {v}" for k, v in library_versions().items()))
+    print(f"{'h':45s} {'pins':>4s} {'trials':>6s} {'fail':>4s} {'return':>7s} {'J demo':>7s} {'J best':>7s}"
+          f" {'ratio':>5s} {'acc demo':>8s} {'acc best':>8s} {'s':>5s}")
+    for label, build in cases:
+        task = build()
+        t0 = time.perf_counter()
+        with tempfile.TemporaryDirectory() as folder, RunStore(Path(folder) / "run.corl") as db:
+            run = StoredRun.start(db, task, task_spec="benchmarks.door_from_recording:make_task", method="CORL", seed=0)
+            run.run(task)
+        w0, best = run.history[0][0].w, run.best
+        pins = "13" if not hasattr(task, "times") else str(sum(len(t) for t in task.times))
+        J0 = cost_of(task, w0)
+        print(f"{label:45s} {pins:>4s} {len(run.history):6d} {sum(not o.success for _, o in run.history):4d} "
+              f"{best.return_:7.4f} {J0:7.1f} {best.J:7.1f} {J0 / best.J:5.1f} "
+              f"{acceleration_integral(task, w0):8.1f} {acceleration_integral(task, best.w):8.1f} "
+              f"{time.perf_counter() - t0:5.1f}", flush=True)
 
 
 if __name__ == "__main__":
+    import sys
+
+    if "--sweep" in sys.argv[1:]:
+        sweep()
+        raise SystemExit(0)
     task = make_task()
     iv = task.contacts.intervals[0]
     print(f"contact {iv.start:.2f}-{iv.end:.2f} s with {', '.join(iv.geoms)}; theta0 = {task.theta0}")

@@ -191,6 +191,44 @@ def test_h_of_the_known_scene_holds_the_demonstration_and_theta_moves_it():
     np.testing.assert_allclose(task.theta_of(w), demo.theta + [0.01, -0.02], atol=1e-6)
 
 
+
+def test_pinned_instants_keep_the_path_within_the_tolerance():
+    """Closed form: targets on a straight line at constant speed need only the first, the contact's
+    first and the last instant; a kink adds its instant; every instant left out lies within the
+    tolerance of the line between the kept ones around it; a tolerance below the bend keeps all."""
+    from corl.mujoco.recorded import pinned_instants
+
+    t = np.linspace(0.0, 1.0, 21)
+    eye = np.eye(3)[:, :1]
+    line = [(float(s), np.array([s, 0.0, 0.0]), eye, None, 0.0) for s in t]
+    assert pinned_instants(line, np.zeros(1), 0.5, 1e-3) == [0, 10, 20]
+    bent = [(float(s), np.array([s, 0.1 * max(0.0, s - 0.3), 0.0]), eye, None, 0.0) for s in t]
+    kept = pinned_instants(bent, np.zeros(1), 0.0, 1e-3)
+    assert 6 in kept and kept[0] == 0 and kept[-1] == 20  # the kink at t = 0.3
+    path = np.array([x[1] for x in bent])
+    for a, b in zip(kept[:-1], kept[1:]):
+        s = (t[a:b + 1] - t[a]) / (t[b] - t[a])
+        assert np.max(np.linalg.norm(path[a:b + 1] - (path[a] + s[:, None] * (path[b] - path[a])), axis=1)) <= 1e-3
+    curve = [(float(s), np.array([np.cos(s), np.sin(s), 0.0]), eye, None, 0.0) for s in t]
+    assert pinned_instants(curve, np.zeros(1), 0.0, 1e-6) == list(range(21))
+    grip = [(float(s), np.zeros(3), eye, None, 0.02 * (s > 0.52)) for s in t]  # the gripper closes
+    assert {10, 11} <= set(pinned_instants(grip, np.zeros(1), 0.0, 1e-3))
+
+
+def test_a_tolerance_pins_fewer_instants_and_h_still_holds_the_demonstration():
+    from corl.mujoco import RecordedTask
+
+    contacts = find_contacts(robot(), TOUCH, "button")
+    every = RecordedTask(robot(), contacts, lambda log: 0.0, lambda log: True)
+    fewer = RecordedTask(robot(), contacts, lambda log: 0.0, lambda log: True, tolerance=0.002)
+    assert 2 <= len(fewer.times[0]) < len(every.times[0])
+    assert set(np.round(fewer.times[0], 9)) <= set(np.round(every.times[0], 9))
+    demo = fewer.demonstration()
+    np.testing.assert_allclose(demo.theta, every.demonstration().theta, atol=0.01 * SIZE)
+    assert np.max(np.abs(fewer.constraint(demo.w, demo.theta)[0])) < 1e-6
+    with pytest.raises(InputError, match="tolerance"):
+        RecordedTask(robot(), contacts, lambda log: 0.0, lambda log: True, tolerance=0.0)
+
 # -- a grasp: the object follows the pinched point -------------------------------------------------
 # A carriage (slides x, z) with two fingers (slides along y) pinches a bar hinged about y at
 # (0.3, 0, 0.1), 8 cm from the hinge, and lifts it along its arc to 0.3 rad; no gravity.

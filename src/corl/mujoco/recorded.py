@@ -12,7 +12,9 @@ theta       (m,) = (theta_1, ..., theta_I): ``theta_i = D_i^T p_i``, the contact
             along D_i in the object's frame (m); the demonstration's is ``D_i^T p0_i``; with
             ``grip_bounds`` one more: the gripper's value while it holds (its recorded closed value)
 p_i(theta)  ``p0_i + D_i (theta_i - D_i^T p0_i)``: the point on the object theta names
-t_k         instants every ``spacing`` s of each interval, from ``approach`` s before it starts
+t_k         instants every ``spacing`` s of each interval, from ``approach`` s before it starts; with
+            ``tolerance`` only those between which the targets (and the gripper's value)
+            move within ``tolerance`` m of a straight line in time (the first contact instant kept)
 d_ik        (3,) where the robot's contact point was at t_k relative to p0_i, in the object's frame
             (zero in contact up to the replay's millimetres; the approach above the surface before)
 h(w, theta) Eq. 6 at every t_k: ``phi(xi(w, t_k)) = x_o(t_k) + R_o(t_k) (p_i(theta_i) + d_ik)``, the
@@ -111,12 +113,15 @@ class RecordedTask:
                  name: str | None = None, directions=None, theta_bounds: Bounds | None = None,
                  hold_orientation: bool = False, orientation_weight: float = 0.3, approach: float = 0.4,
                  spacing: float = 0.1, control_points: int | None = None, controller: PDController | None = None,
-                 settings=None, grip_bounds: tuple[float, float] | None = None) -> None:
+                 settings=None, grip_bounds: tuple[float, float] | None = None,
+                 tolerance: float | None = None) -> None:
         if not (callable(return_) and callable(success)):
             raise InputError("return_ and success must be callables log -> number and log -> bool")
         if not (spacing > 0 and approach >= 0 and orientation_weight > 0):
             raise InputError(f"spacing ({spacing}) and orientation_weight ({orientation_weight}) must be positive, "
                              f"approach ({approach}) not negative")
+        if tolerance is not None and not tolerance > 0:
+            raise InputError(f"tolerance ({tolerance}) must be a positive distance (m), or None for every instant")
         self.robot, self.contacts, self._return, self._success = robot, contacts, return_, success
         self.name = name or f"{contacts.object}_from_recording"
         self.kin = Kinematics(robot)
@@ -139,6 +144,11 @@ class RecordedTask:
         bounds = self._geometric_bounds()
         self.joint_names = tuple(robot.joints) + (("gripper",) if robot.gripper else ())
         self._targets = [self._instants(i) for i in range(len(contacts.intervals))]
+        if tolerance is not None:
+            for i, iv in enumerate(contacts.intervals):
+                keep = pinned_instants(self._targets[i], self._theta0_of(i), iv.start, float(tolerance))
+                self._targets[i] = [self._targets[i][k] for k in keep]
+                self.times[i] = self.times[i][keep]
         self._closed = [[False] * len(x) for x in self._targets]  # instants whose gripper value is theta's
         if grip_bounds is not None:
             bounds = self._grip_theta(grip_bounds, bounds)
@@ -148,6 +158,11 @@ class RecordedTask:
         self._controller, self._settings = controller, settings
         self._problems: dict = {}
         self.demo_report = None
+
+    def _theta0_of(self, i: int) -> np.ndarray:
+        """The demonstration's theta_i (interval i's contact coordinates)."""
+        start = sum(D.shape[1] for D in self.directions[:i])
+        return self.theta0[start:start + self.directions[i].shape[1]]
 
     def _geometric_bounds(self) -> Bounds:
         """Each theta coordinate between the object's extremes along its direction (its geoms' boxes)."""
@@ -299,6 +314,30 @@ class RecordedTask:
         return Outcome(ok, float(self._return(log)) if ok else None, touched)
 
 
+def pinned_instants(targets: list, theta: np.ndarray, start: float, tolerance: float) -> list[int]:
+    """Indices of the ``targets`` (:meth:`RecordedTask._instants`' tuples) h keeps: the first, the
+    last, the first at or after ``start``, and more until every target left out lies within
+    ``tolerance`` of the straight line in time between the kept ones around it (the contact point
+    ``c_k + M_k theta`` in m and the gripper's value, one vector). Greedy (Douglas-Peucker in time:
+    the farthest target of a span is kept first), so few, not always the fewest."""
+    t = np.array([x[0] for x in targets])
+    path = np.array([np.append(base + M @ theta, grip) for _, base, M, _, grip in targets])
+    kept = {0, len(t) - 1, int(np.argmax(t >= start - 1e-9))}
+    todo = sorted(kept)
+    spans = list(zip(todo[:-1], todo[1:]))
+    while spans:
+        a, b = spans.pop()
+        if b - a < 2:
+            continue
+        s = (t[a + 1:b] - t[a]) / (t[b] - t[a])
+        off = np.linalg.norm(path[a + 1:b] - (path[a] + s[:, None] * (path[b] - path[a])), axis=1)
+        k = int(np.argmax(off))
+        if off[k] > tolerance:
+            kept.add(a + 1 + k)
+            spans += [(a, a + 1 + k), (a + 1 + k, b)]
+    return sorted(kept)
+
+
 def task_from_recording(scene, joints: Sequence[str] | None, recording, object: str | None, *,
                         return_: Callable, success: Callable, gripper=None, gap: float = 0.1,
                         slide_tolerance: float | None = None, grasp: bool = False, **options) -> RecordedTask:
@@ -319,7 +358,9 @@ def task_from_recording(scene, joints: Sequence[str] | None, recording, object: 
     **options : for :class:`RecordedTask`: ``name``; ``directions`` (object axes such as ``("-x",)``
         or 3-vectors theta moves the contact along; default the two tangent directions);
         ``theta_bounds`` (default the object's extent along them); ``hold_orientation``,
-        ``orientation_weight`` (m/rad); ``approach``, ``spacing`` (s: h's instants);
+        ``orientation_weight`` (m/rad); ``approach``, ``spacing`` (s: h's instants); ``tolerance``
+        (m: keep only the instants the targets' path needs within this distance, :func:`pinned_instants`;
+        default all);
         ``control_points``; ``controller``; ``settings`` (a ``corl.settings.MethodSettings``);
         ``grip_bounds`` (lower, upper): the gripper's value while it holds the object becomes theta's
         last coordinate (e.g. how tight a grasp squeezes), within these bounds.
