@@ -68,9 +68,11 @@ def return_(result) -> float:
     return return_of_force(result.force_mean)
 
 
-def method_settings():
+def method_settings(min_J_decrease: float = 1e-3):
     """The door's hyperparameters (``DoorTask.method_settings``): the width's length scale is the
-    paper's times the ratio of the width's range (20 mm) to the grasp's (152 mm here)."""
+    paper's times the ratio of the width's range (20 mm) to the grasp's (152 mm here). Beyond the
+    door's: step 1 and the phase steps roll out only steps that lower J by at least 0.1 %
+    (``min_J_decrease``): this h lets tiny J steps move the return by 0.14 (see the guide)."""
     from dataclasses import replace
 
     from corl.settings import DOOR_CLASSIFIER, DOOR_REGRESSION, CORLConfig, MethodSettings
@@ -80,15 +82,16 @@ def method_settings():
     return MethodSettings(regression=scales(DOOR_REGRESSION), classifier=scales(DOOR_CLASSIFIER),
                           direct_budget=150, theta_scale=(1.0, ratio),
                           corl=CORLConfig(eps_max=0.1, eps_w=1e-5, eps_theta=0.003, max_rounds=6,
-                                          max_optimization_steps=60, max_rl_trials=60, max_phase_steps=20))
+                                          max_optimization_steps=60, max_rl_trials=60, max_phase_steps=20,
+                                          min_J_decrease=min_J_decrease))
 
 
-def make_task(**options):
-    """The door task derived from the recording (``options``: ``spacing``, ``tolerance``, ...)."""
+def make_task(*, spacing: float = 0.1, tolerance: float | None = None, min_J_decrease: float = 1e-3):
+    """The door task derived from the recording (h's instants: see :class:`RecordedTask`)."""
     robot = load_scene().robot
     contacts = find_contacts(robot, load_recording(RECORDING), "handle", grasp=True)
     options = {"name": "door_from_recording", "directions": ("-y",), "hold_orientation": True,
-               "grip_bounds": GRIP, "settings": method_settings(), **options}
+               "grip_bounds": GRIP, "settings": method_settings(min_J_decrease), "spacing": spacing, "tolerance": tolerance}
     return DoorFromRecording(robot, contacts, return_, success, **options)
 
 
@@ -117,6 +120,7 @@ def sweep() -> None:
 
     cases = [("hand-written door (corl run door)", lambda: DoorTask(seed=0)),
              ("derived, every 0.1 s (default)", make_task)]
+    cases += [(f"derived, min_J_decrease {f:g}", lambda f=f: make_task(min_J_decrease=f)) for f in (0.0, 1e-4, 1e-2)]
     cases += [(f"derived, spacing {sp:g} s, tolerance {tol * 1e3:g} mm",
                lambda sp=sp, tol=tol: make_task(spacing=sp, tolerance=tol))
               for sp in (0.1, 0.05) for tol in (0.0005, 0.001, 0.002)]

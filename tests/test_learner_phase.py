@@ -107,3 +107,19 @@ def test_without_retimed_the_contact_instants_keep_their_phase():
     for p, _ in learner.history[1:]:  # trial 0 is the demonstration, a B-spline fit
         h, _ = task.constraint(p.w, p.theta)
         assert np.max(np.abs(h)) < 1e-4
+
+
+@pytest.mark.parametrize("fraction", [0.05, 0.2])
+def test_min_J_decrease_ends_a_chain_whose_step_buys_too_little(fraction):
+    """Every rolled-out step-1 or phase step lowers J by at least the fraction of the one before it;
+    the step that would not is never rolled out, and the paper's rule alone (0) rolls out more."""
+    task = WaypointTask()
+    paper = run(task, max_phase_steps=10)
+    learner = run(task, max_phase_steps=10, min_J_decrease=fraction)
+    J = [cost_of(task, p.w) for p, _ in learner.history]
+    assert all(b <= (1.0 - fraction) * a for a, b in zip(J[:-1], J[1:])), np.round(J, 3)
+    assert 2 <= len(learner.history) < len(paper.history)
+    cfg = CORLConfig(min_J_decrease=fraction)
+    with pytest.raises(Exception, match=r"min_J_decrease must be in \[0, 1\)"):
+        CORLConfig(min_J_decrease=1.0)
+    assert cfg.min_J_decrease == fraction

@@ -46,7 +46,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("mujoco", ("corl.mujoco",)),  # the robot kit: features of Eq. 6 for any MJCF / URDF
     ("realise", ("corl.realise",)),  # Eq. 18 with a task
     ("loop", ("corl.loop",)),  # ask, roll out, tell
-    ("learner", ("corl.learner", "corl.speculation", "corl.direct", "corl.parallel")),  # Algorithm 1 (its speculation, K trials out); the methods over w
+    ("learner", ("corl.config", "corl.learner", "corl.speculation", "corl.direct", "corl.parallel")),  # Algorithm 1 (its speculation, K trials out); the methods over w
     ("settings", ("corl.settings",)),  # what a task gives the methods
     ("methods", ("corl.methods",)),  # a learner by name
     ("tasks", ("corl.tasks",)),  # the synthetic benchmark, the door, tasks by name

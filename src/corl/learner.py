@@ -21,7 +21,8 @@ The algorithm is written once, as a generator that yields :class:`Proposal` obje
 Decisions beyond the paper (see README):
 * The demonstration is rolled out once, as trial 0: D needs ``R(theta0)``, and a failing
   demonstration is reported at once (:class:`DemonstrationFailedError`).
-* A step-1 iterate that moved less than ``eps_w`` is not rolled out (it is the same policy).
+* A step-1 iterate that moved less than ``eps_w`` is not rolled out (it is the same policy); with
+  ``CORLConfig.min_J_decrease`` > 0, neither is one that lowers J by less than that fraction.
 * A failed rollout in step 1 ends that step; ``w*`` stays at the last success, and the trust
   region of every later step-1 step is halved (``eps_max / 2`` per failure). Eq. 8's trust region
   exists because a step is "not guaranteed to lead to task success" (Sec. VI-A); a failure is the
@@ -44,55 +45,24 @@ Decisions beyond the paper (see README):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable, Generator, Iterator
 
 import numpy as np
 
 from corl import checks
 from corl.errors import DemonstrationFailedError, InputError, StateError
+from corl.config import CORLConfig
 from corl.loop import drive
-from corl.optimizers.base import START_RETRIES, BlackBoxOptimizer, StopReason
+from corl.optimizers.base import BlackBoxOptimizer, StopReason
 from corl.problem import Bounds, Outcome, Proposal, Task
 from corl.realise import check_demonstration, feasible, motion_problem, realise
 from corl.speculation import _Speculation
-from corl.trajectory.solver import SolverConfig, solve
+from corl.trajectory.solver import solve
 
 __all__ = ["CORLConfig", "CORL", "Best", "OptimizerFactory", "best_observed", "cost_of"]
 
 OptimizerFactory = Callable[[Bounds, np.ndarray, np.random.Generator], BlackBoxOptimizer]
-
-
-@checks.keywords({"rl_budget": "CORL's budget is CORLConfig(max_rl_trials=N) (black-box trials over the whole run)"})
-@dataclass(frozen=True)
-class CORLConfig:
-    """Settings of Algorithm 1 (paper defaults for the synthetic benchmark)."""
-
-    eps_max: float = 1e-3
-    eps_w: float = 1e-5
-    eps_theta: float = 3e-3
-    theta_step_stop: bool = False
-    max_rounds: int = 10
-    max_optimization_steps: int = 5000
-    max_rl_trials: int = 100  # black-box trials of step 2 over the whole run, all rounds (see CORL)
-    rollout_every_step: bool = True
-    reuse_data: bool = True
-    max_phase_steps: int = 0  # phase steps (Eq. 10) after the trajectory steps; needs task.spline
-    start_retries: int = START_RETRIES  # a failed demonstration is rolled out again this often before it is refused
-    solver: SolverConfig = field(default_factory=SolverConfig)
-    demo_tolerance: float = 1e-3  # the demonstration needs max|h(w0, theta0)| <= this, in h's units
-
-    def __post_init__(self) -> None:  # every field checked here, before any rollout (corl.checks)
-        for name in ("eps_max", "eps_w", "eps_theta", "demo_tolerance"):
-            object.__setattr__(self, name, checks.number(f"CORLConfig.{name}", getattr(self, name), low=0.0, low_open=True))
-        object.__setattr__(self, "start_retries", checks.integer("CORLConfig.start_retries", self.start_retries))
-        for name in ("max_rounds", "max_optimization_steps", "max_rl_trials"):
-            object.__setattr__(self, name, checks.integer(f"CORLConfig.{name}", getattr(self, name), low=1))
-        object.__setattr__(self, "max_phase_steps", checks.integer("CORLConfig.max_phase_steps", self.max_phase_steps))
-        for name in ("theta_step_stop", "rollout_every_step", "reuse_data"):
-            checks.flag(f"CORLConfig.{name}", getattr(self, name))
-        if not isinstance(self.solver, SolverConfig):
-            raise InputError(f"CORLConfig.solver must be a corl.settings.SolverConfig, got {type(self.solver).__name__}")
 
 
 @dataclass(frozen=True)
@@ -277,9 +247,12 @@ class CORL:
         return Proposal(index=len(self.history), w=w, theta=theta, step=step, round=self.rounds)
 
     def _stays(self, w_next, w_i) -> bool:
-        """A chain's step (step 1, phase) ends: ``w_next`` moved under eps_w, or failed before (when rolled out)."""
+        """A chain's step (step 1, phase) ends: ``w_next`` moved under eps_w, lowers J by less than the
+        fraction ``min_J_decrease``, or failed before (when rolled out)."""
         cfg = self.config
-        return np.linalg.norm(w_next - w_i) < cfg.eps_w or (cfg.rollout_every_step and self.failed_before(w_next))
+        if np.linalg.norm(w_next - w_i) < cfg.eps_w or (cfg.rollout_every_step and self.failed_before(w_next)):
+            return True
+        return cfg.min_J_decrease > 0.0 and cost_of(self.task, w_next) > (1.0 - cfg.min_J_decrease) * cost_of(self.task, w_i)
 
     def failed_before(self, w: np.ndarray) -> bool:
         """True when ``w`` (n,) is within ``eps_w`` of the w of a failed trial (the same policy)."""

@@ -229,6 +229,31 @@ def test_a_tolerance_pins_fewer_instants_and_h_still_holds_the_demonstration():
     with pytest.raises(InputError, match="tolerance"):
         RecordedTask(robot(), contacts, lambda log: 0.0, lambda log: True, tolerance=0.0)
 
+
+def test_retimed_moves_the_instants_and_keeps_where_the_contact_is():
+    """Phase steps (Sec. VI-B) move h's instants: the identity map gives the same h, a shift moves
+    every instant and keeps each target, theta_of reads at the moved first contact instant, the
+    original task is unchanged, and a map that reverses time is refused."""
+    from corl.mujoco import RecordedTask
+
+    task = RecordedTask(robot(), find_contacts(robot(), TOUCH, "button"), lambda log: 0.0, lambda log: True)
+    demo = task.demonstration()
+    same = task.retimed(lambda t: np.asarray(t))
+    np.testing.assert_array_equal(same.constraint(demo.w, demo.theta)[0], task.constraint(demo.w, demo.theta)[0])
+    before = [t.copy() for t in task.times]
+    later = task.retimed(lambda t: np.asarray(t) + 0.05)
+    np.testing.assert_allclose(later.times[0], before[0] + 0.05, atol=1e-12)
+    np.testing.assert_array_equal(task.times[0], before[0])
+    for old, new in zip(task._targets[0], later._targets[0]):
+        assert new[0] == pytest.approx(old[0] + 0.05) and np.array_equal(new[1], old[1]) and np.array_equal(new[2], old[2])
+    first = later._first[0]
+    shifted = later.spline.positions(demo.w, [later.times[0][first]])[0]
+    point = later.kin.position(shifted, later.frames[0])
+    t0, base, M, _, _ = later._targets[0][first]
+    np.testing.assert_allclose(later.theta_of(demo.w), M.T @ (point - base), atol=1e-12)
+    with pytest.raises(InputError, match="re-timed instants"):
+        task.retimed(lambda t: -np.asarray(t))
+
 # -- a grasp: the object follows the pinched point -------------------------------------------------
 # A carriage (slides x, z) with two fingers (slides along y) pinches a bar hinged about y at
 # (0.3, 0, 0.1), 8 cm from the hinge, and lifts it along its arc to 0.3 rad; no gravity.

@@ -30,6 +30,7 @@ R, S        ``return_(log)`` and ``success(log)``, the user's, on the log of a s
 
 from __future__ import annotations
 
+import copy
 from functools import cached_property
 from typing import Callable, Sequence
 
@@ -149,6 +150,8 @@ class RecordedTask:
                 keep = pinned_instants(self._targets[i], self._theta0_of(i), iv.start, float(tolerance))
                 self._targets[i] = [self._targets[i][k] for k in keep]
                 self.times[i] = self.times[i][keep]
+        self._first = [next(k for k, x in enumerate(xs) if x[0] >= iv.start - 1e-9)  # each one's first contact
+                       for xs, iv in zip(self._targets, contacts.intervals)]
         self._closed = [[False] * len(x) for x in self._targets]  # instants whose gripper value is theta's
         if grip_bounds is not None:
             bounds = self._grip_theta(grip_bounds, bounds)
@@ -240,7 +243,7 @@ class RecordedTask:
         """theta (m,) of ``w`` by forward kinematics at each interval's first contact instant."""
         out = []
         for i, instants in enumerate(self._targets):
-            t, base, M, _, _ = next(x for x in instants if x[0] >= self.contacts.intervals[i].start - 1e-9)
+            t, base, M, _, _ = instants[self._first[i]]
             p = self.kin.position(self.spline.positions(w, [t])[0], self.frames[i])
             out.append(M.T @ (p - base))  # M = R_o D has orthonormal columns
         if any(any(c) for c in self._closed):
@@ -248,6 +251,22 @@ class RecordedTask:
             t = self._targets[i][self._closed[i].index(True)][0]
             out.append(self.spline.positions(w, [t])[0][-1:])
         return np.concatenate(out)
+
+    def retimed(self, time_map) -> "RecordedTask":
+        """The task with h's instants moved by a phase step (Sec. VI-B, Eq. 10): a copy whose targets
+        (where the recording had the object at each t_k) hold at ``time_map(t_k)``. Where the contact
+        is stays; only when it happens moves, as the learned motion's phase does."""
+        times = [np.asarray(time_map(t), dtype=float) for t in self.times]
+        for old, new in zip(self.times, times):
+            if new.shape != old.shape or np.any(np.diff(new) <= 0.0) or (new.size and (
+                    new[0] <= 0.0 or new[-1] > self.duration + 1e-9)):
+                raise InputError(f"re-timed instants {np.round(new, 3).tolist()} must stay increasing "
+                                 f"inside (0, {self.duration}] s")
+        task = copy.copy(self)
+        task.times = times
+        task._targets = [[(float(t),) + x[1:] for t, x in zip(new, xs)] for new, xs in zip(times, self._targets)]
+        task._problems = {}
+        return task
 
     @cached_property
     def projection_metric(self):
@@ -368,7 +387,7 @@ def task_from_recording(scene, joints: Sequence[str] | None, recording, object: 
     Returns
     -------
     RecordedTask : with ``demonstration``, ``cost_residuals``, ``constraint``, ``trajectory_problem``,
-        ``theta_of``, ``projection_metric``, ``rollout``, ``reference``, ``joint_names``,
+        ``theta_of``, ``retimed``, ``projection_metric``, ``rollout``, ``reference``, ``joint_names``,
         ``theta_labels`` derived. Raises :class:`InputError` (one line) when the recording never
         touches the object, touches other movable bodies too, or slides on it.
     """
