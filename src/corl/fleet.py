@@ -10,7 +10,11 @@ The task is forked into each worker, so its rollout must be a pure function of `
 a real robot's task is driven through ``corl serve`` or ``corl ask``/``corl tell`` instead.
 ``backend="ray"``: K Ray actors (a local Ray of K CPUs, :func:`corl.experiments.backends.cluster`),
 each loading the task from its spec and seed (or, without a spec, unpickling the task) once and
-rolling out the trials sent to it. Dask is not done (InputError names it).
+rolling out the trials sent to it. ``backend="dask"``: the trials as Dask tasks on a local cluster of
+K single-threaded worker processes; each worker loads the task from its spec and seed once (a task
+without a spec is scattered to every worker once). With ``address`` both join a running cluster
+instead (``ray start --head`` / ``dask scheduler``), whose workers must have corl and the task's
+code installed; at most K trials are out whatever its size.
 """
 
 from __future__ import annotations
@@ -32,7 +36,7 @@ from corl.problem import Outcome, Proposal, Task
 
 __all__ = ["run_fleet", "BACKENDS"]
 
-BACKENDS = ("local", "ray")  # processes on this machine, or Ray actors; Dask workers are not done
+BACKENDS = ("local", "ray", "dask")  # processes on this machine, Ray actors, or Dask workers
 _TASK: Task | None = None  # the task the workers fork with (set before the pool starts them)
 
 
@@ -51,13 +55,25 @@ def _rollout(w, seconds: float):
     return outcome
 
 
-def check_backend(backend: str) -> str:
+def check_backend(backend: str, address: str | None = None) -> str:
     if backend not in BACKENDS:
         raise InputError(f"--backend {backend!r} is not available: corl runs several robots as local processes "
-                         f"(--backend local) or Ray actors (--backend ray); a Dask backend is not done yet")
+                         f"(--backend local), Ray actors (--backend ray) or Dask workers (--backend dask)")
+    if address is not None and backend == "local":
+        raise InputError(f"--address {address!r} joins a Ray or Dask cluster: add --backend ray or --backend dask")
     if backend == "ray" and find_spec("ray") is None:
         raise MissingExtraError("--backend ray needs Ray: pip install 'corl-skills[ray]'")
+    if backend == "dask" and find_spec("distributed") is None:
+        raise MissingExtraError("--backend dask needs Dask: pip install 'corl-skills[dask]'")
     return backend
+
+
+def _picklable(task: Task, backend: str) -> None:
+    try:
+        pickle.dumps(task)
+    except Exception as exc:
+        raise InputError(f"--backend {backend} sends the task to its workers, and it cannot be pickled "
+                         f"({type(exc).__name__}: {exc}); give its spec, or use --backend local") from exc
 
 
 class _RayRobot:
@@ -79,18 +95,15 @@ class _RayPool:
     """K Ray actors behind ``submit(fn, w, seconds)`` -> a concurrent.futures.Future (a thread per robot
     waits on its actor). ``fn`` is ignored: the actor rolls out its own task."""
 
-    def __init__(self, stack: ExitStack, task: Task, robots: int, task_spec: str | None, seed: int) -> None:
+    def __init__(self, stack: ExitStack, task: Task, robots: int, task_spec: str | None, seed: int,
+                 address: str | None = None) -> None:
         from corl.experiments.backends import cluster
 
-        stack.enter_context(cluster("ray", robots))
+        if task_spec is None:
+            _picklable(task, "ray")
+        stack.enter_context(cluster("ray", robots, address))
         import ray
 
-        if task_spec is None:
-            try:
-                pickle.dumps(task)
-            except Exception as exc:
-                raise InputError(f"--backend ray sends the task to Ray workers, and it cannot be pickled "
-                                 f"({type(exc).__name__}: {exc}); give its spec, or use --backend local") from exc
         actor = ray.remote(num_cpus=1)(_RayRobot)
         self.ray, self.free = ray, queue.SimpleQueue()
         for _ in range(robots):
@@ -108,22 +121,63 @@ class _RayPool:
         return self.threads.submit(self._call, w, seconds)
 
 
+_LOADED: dict = {}  # on a Dask worker: the tasks it loaded, by (spec, seed)
+
+
+def _dask_rollout(task_spec, seed, task, w, seconds: float):
+    """One trial on a Dask worker: the task loaded from its spec once per worker process (or given)."""
+    if task is None:
+        if (task_spec, seed) not in _LOADED:
+            from corl.tasks.registry import load_task
+
+            _LOADED[(task_spec, seed)] = load_task(task_spec, seed=seed)
+        task = _LOADED[(task_spec, seed)]
+    outcome = task.rollout(w)
+    if seconds > 0:
+        time.sleep(seconds)
+    return outcome
+
+
+class _DaskPool:
+    """Dask workers behind ``submit(fn, w, seconds)`` -> a concurrent.futures.Future (a thread per robot
+    waits on its Dask future). ``fn`` is ignored: the worker rolls out the task of the spec."""
+
+    def __init__(self, stack: ExitStack, task: Task, robots: int, task_spec: str | None, seed: int,
+                 address: str | None = None) -> None:
+        from corl.experiments.backends import cluster
+
+        if task_spec is None:
+            _picklable(task, "dask")
+        stack.enter_context(cluster("dask", robots, address))
+        from distributed import get_client
+
+        self.client, self.spec, self.seed = get_client(), task_spec, seed
+        self.task = None if task_spec is not None else self.client.scatter(task, broadcast=True)
+        self.threads = stack.enter_context(ThreadPoolExecutor(max_workers=robots))
+
+    def _call(self, w, seconds):
+        return self.client.submit(_dask_rollout, self.spec, self.seed, self.task, w, seconds, pure=False).result()
+
+    def submit(self, fn, w, seconds):
+        return self.threads.submit(self._call, w, seconds)
+
+
 def run_fleet(session, task: Task, *, robots: int, backend: str = "local", trial_seconds: float = 0.0,
               callback: Callable[[Proposal, Outcome], None] | None = None, task_spec: str | None = None,
-              seed: int = 0) -> int:
+              seed: int = 0, address: str | None = None) -> int:
     """Roll out ``session``'s trials (a :class:`corl.session.StoredRun`) on ``robots`` worker processes
-    (or Ray actors, which load ``task_spec`` with ``seed``) until its learner is done; returns the number
-    of trials told. A rollout that raises is a :class:`RolloutError` (its trial, and those still out,
+    (or Ray actors or Dask workers, which load ``task_spec`` with ``seed``; on the cluster at ``address``
+    if given) until its learner is done; returns the number of trials told. A rollout that raises is a :class:`RolloutError` (its trial, and those still out,
     stay pending in the store: resume goes on)."""
     global _TASK
     robots = checks.integer("robots", robots, low=1)
-    check_backend(backend)
+    check_backend(backend, address)
     if not (isinstance(trial_seconds, (int, float)) and 0 <= trial_seconds < float("inf")):
         raise InputError(f"trial_seconds must be a finite number >= 0, got {trial_seconds!r}")
     _TASK, told, running = task, 0, {}
     with ExitStack() as stack:
-        if backend == "ray":
-            pool = _RayPool(stack, task, robots, task_spec, seed)
+        if backend in ("ray", "dask"):
+            pool = (_RayPool if backend == "ray" else _DaskPool)(stack, task, robots, task_spec, seed, address)
         else:
             pool = stack.enter_context(ProcessPoolExecutor(
                 max_workers=robots, mp_context=multiprocessing.get_context("fork"), initializer=_start_worker,

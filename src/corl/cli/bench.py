@@ -249,8 +249,9 @@ def bench_parallel(
     robots: int = typer.Option(4, help="K, the robots of the second run (the first has one)"),
     trial_seconds: float = typer.Option(0.5, help="robot time each trial also takes, in seconds"),
     seed: int = typer.Option(0, help="seed of the task and the learner"),
-    backend: str = typer.Option("local", help="where the trials run: local (worker processes) or ray (a local "
-                                               "Ray's actors); Dask is not done"),
+    backend: str = typer.Option("local", help="where the trials run: local (worker processes), ray (Ray actors) or "
+                                               "dask (Dask workers), on a local cluster unless --address"),
+    address: Optional[str] = typer.Option(None, help="with --backend ray or dask: a running cluster to join"),
     out: Path = typer.Option(Path("results/parallel"), help="output folder for parallel.json and parallel.png"),
     rollout_every_step: Optional[bool] = typer.Option(
         None, "--rollout-every-step/--no-rollout-every-step", help="as corl run (default: the task's CORLConfig)"),
@@ -269,7 +270,7 @@ def bench_parallel(
     if not (math.isfinite(trial_seconds) and 0 <= trial_seconds <= 3600):
         fail(f"--trial-seconds must be a number of seconds in [0, 3600], got {trial_seconds}")
     try:
-        check_backend(backend)
+        check_backend(backend, address)
     except CorlError as exc:
         fail(str(exc))
     NEW_PATHS.track(out)
@@ -284,7 +285,7 @@ def bench_parallel(
 
         try:
             payload = parallel_bench(task, robots, trial_seconds, seed, out, overrides=overrides, backend=backend,
-                                     progress=tick)
+                                     address=address, progress=tick)
         except CorlError as exc:
             fail(str(exc))
     payload["files"] = {"json": str(out / "parallel.json"), "figure": str(plot_parallel(payload, out / "parallel.png"))}

@@ -48,7 +48,10 @@ def run(
     robots: Optional[int] = typer.Option(
         None, "--robots", help="K simulated robots: up to K trials out at once, each in a worker process "
                                "(CORL's black-box step; default 1)"),
-    backend: str = typer.Option("local", help="where --robots run: local (processes) or ray (a local Ray's actors); Dask is not done"),
+    backend: str = typer.Option("local", help="where --robots run: local (processes), ray (Ray actors) or dask (Dask "
+                                               "workers), on a local cluster of K unless --address"),
+    address: Optional[str] = typer.Option(None, help="with --backend ray or dask: a running cluster to join "
+                                                     "(its workers need corl and the task's code)"),
     end_at_error: bool = typer.Option(
         False, "--end-at-error", help="with --resume: where the task's code raised on the run's last told trial, "
                                       "end the run there (every trial kept, none run) and write its summary"),
@@ -90,7 +93,7 @@ def run(
                                                    robots=robots)
         from corl.fleet import check_backend
 
-        check_backend(backend)
+        check_backend(backend, address)
         if end_at_error and session.ended is None:
             fail(f"run {session.run_id} in {store_path} resumes without an error of the task's code, so there is "
                  "nothing to end it at: drop --end-at-error to go on with it")
@@ -130,7 +133,7 @@ def run(
                     from corl.fleet import run_fleet
 
                     run_fleet(session, the_task, robots=info.config["robots"], backend=backend, callback=tick,
-                              task_spec=info.task, seed=seed)
+                              task_spec=info.task, seed=seed, address=address)
                 else:
                     session.run(the_task, callback=tick)
                 tracker.update("trials", done=len(session.history), total=len(session.history), note="finished")

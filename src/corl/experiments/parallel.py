@@ -19,7 +19,8 @@ __all__ = ["parallel_run", "parallel_bench", "plot_parallel"]
 
 
 def parallel_run(task_spec: str, robots: int, seconds: float, seed: int, store_path: Path, *,
-                 overrides: dict | None = None, backend: str = "local", progress=None) -> dict:
+                 overrides: dict | None = None, backend: str = "local", address: str | None = None,
+                 progress=None) -> dict:
     """One stored run of CORL on ``task_spec`` with ``robots`` robots; what parallel.json records of it."""
     from corl.fleet import run_fleet
     from corl.session import StoredRun
@@ -41,7 +42,7 @@ def parallel_run(task_spec: str, robots: int, seconds: float, seed: int, store_p
     with RunStore(store_path) as db:
         session.attach(db)
         run_fleet(session, task, robots=robots, backend=backend, trial_seconds=seconds, callback=tick,
-                  task_spec=task_spec, seed=seed)
+                  task_spec=task_spec, seed=seed, address=address)
     history = session.history
     return {"wall_s": time.perf_counter() - t0, "trials": len(history),
             "failures": sum(not o.success for _, o in history),
@@ -52,10 +53,11 @@ def parallel_run(task_spec: str, robots: int, seconds: float, seed: int, store_p
 
 
 def parallel_bench(task_spec: str, robots: int, seconds: float, seed: int, out: Path, *,
-                   overrides: dict | None = None, backend: str = "local", progress=None) -> dict:
+                   overrides: dict | None = None, backend: str = "local", address: str | None = None,
+                   progress=None) -> dict:
     """:func:`parallel_run` with one robot, then with ``robots``; the payload of parallel.json."""
     runs = {str(k): parallel_run(task_spec, k, seconds, seed, out / f"robots-{k}.corl", overrides=overrides,
-                                 backend=backend, progress=progress)
+                                 backend=backend, address=address, progress=progress)
             for k in dict.fromkeys((1, robots))}
     from corl.versions import library_versions
 
