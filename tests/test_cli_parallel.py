@@ -18,11 +18,13 @@ runner = CliRunner()
 
 @pytest.mark.parametrize("args, message", [
     (["run", "synthetic", "--robots", "0"], "--robots must be an integer in [1, 64], got 0"),
-    (["run", "synthetic", "--robots", "2", "--backend", "dask"], "--backend 'dask' is not available"),
+    (["run", "synthetic", "--robots", "2", "--backend", "spark"], "--backend 'spark' is not available"),
+    (["run", "synthetic", "--robots", "2", "--address", "127.0.0.1:1"], "joins a Ray or Dask cluster"),
     (["run", "synthetic", "--robots", "2", "--flip", "0.1"], "--robots with --return-noise, --flip or --context"),
     (["bench", "parallel", "synthetic", "--trial-seconds", "-1"], "--trial-seconds must be a number of seconds"),
     (["bench", "parallel", "synthetic", "--robots", "100"], "--robots must be an integer in [1, 64]"),
-    (["bench", "parallel", "synthetic", "--backend", "dask"], "a Dask backend is not done yet"),
+    (["bench", "parallel", "synthetic", "--backend", "spark"], "Dask workers (--backend dask)"),
+    (["bench", "parallel", "synthetic", "--address", "127.0.0.1:1"], "add --backend ray or --backend dask"),
 ])
 def test_bad_input_is_one_line(args, message, tmp_path):
     result = runner.invoke(app, [*args, "--out", str(tmp_path / "out")])

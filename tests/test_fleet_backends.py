@@ -66,17 +66,6 @@ def test_a_task_without_a_spec_is_sent_to_the_workers_once_and_learns(tmp_path):
     assert session.best is not None and session.best.return_ > 0.9
 
 
-@pytest.mark.parametrize("args, says", [
-    (["--backend", "local", "--address", "127.0.0.1:1"], "joins a Ray or Dask cluster"),
-    (["--backend", "spark"], "Dask workers (--backend dask)"),
-])
-def test_a_backend_that_cannot_run_is_refused_before_any_trial(tmp_path, args, says):
-    result = runner.invoke(app, ["run", "synthetic", "--robots", "2", *args, "--out", str(tmp_path / "o")])
-    assert result.exit_code == 2, result.output
-    assert says in result.output and "Traceback" not in result.output
-    assert not (tmp_path / "o" / "run.corl").exists()
-
-
 @needs_dask
 @pytest.mark.slow
 def test_joins_a_running_dask_cluster_at_its_address(tmp_path):
