@@ -195,3 +195,13 @@ def test_bad_robots_or_seconds_are_refused(robots, seconds):
 def test_cli_refuses_bad_robots_in_one_line(args, message, tmp_path):
     refuse(["bench", "contexts", SPEC, "--train", "2", "--test", "1", "--out", str(tmp_path / "out"), *args], message)
     assert not (tmp_path / "out").exists()
+
+
+def test_contexts_json_records_the_robots_and_their_time(tmp_path):
+    from corl.experiments.contexts import bench_contexts
+
+    payload = bench_contexts(SPEC, train_count=2, test_count=1, seed=0, out=tmp_path, budget=5, jobs=1, robots=2,
+                             trial_seconds=0.001)
+    assert (payload["robots"], payload["trial_seconds"]) == (2, 0.001)
+    assert 0 < payload["train_seconds"] <= payload["wall_seconds"]
+    assert [r["start"] for r in payload["train"]] == ["demonstration", "demonstration"]  # one wave of two

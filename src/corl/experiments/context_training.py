@@ -148,7 +148,8 @@ def _learn_alone(spec: str, seed: int, c, source: str | None, upto: dict, skill:
 
 def train(spec: str, seed: int, contexts: np.ndarray, store: Path, progress=None, skill: dict | None = None, *,
           robots: int = 1, trial_seconds: float = 0.0) -> list[dict]:
-    """Learn in each context, every run in ``store``; one summary row per context, in their order.
+    """Learn in each context of ``contexts`` (N, k), every run in ``store``; one summary row per
+    context, in their order.
 
     ``robots`` 1: in turn, each from the runs before it; K > 1: in waves of K, each scene of a wave in
     its own process from the runs of the waves before it (module docstring). ``progress(stage, done,
