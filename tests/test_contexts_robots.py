@@ -205,3 +205,25 @@ def test_contexts_json_records_the_robots_and_their_time(tmp_path):
     assert (payload["robots"], payload["trial_seconds"]) == (2, 0.001)
     assert 0 < payload["train_seconds"] <= payload["wall_seconds"]
     assert [r["start"] for r in payload["train"]] == ["demonstration", "demonstration"]  # one wave of two
+
+
+def test_ctrl_c_ends_the_robots_at_once(tmp_path):
+    """Interrupted in wave 1 (scenes of ~450 trials of 0.05 s each), the study ends in seconds, not when
+    the robots' scenes would; their stores go with them."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    script = ("import signal, sys, numpy as np; signal.signal(signal.SIGINT, signal.default_int_handler); "
+              "from pathlib import Path; from corl.experiments.context_training import train; "
+              f"train({SPEC!r}, 0, np.array([[0.0], [0.5]]), Path(sys.argv[1]) / 'train.corl', robots=2, "
+              "trial_seconds=0.05)")
+    child = subprocess.Popen([sys.executable, "-c", script, str(tmp_path)], stderr=subprocess.PIPE, text=True)
+    time.sleep(3.0)
+    child.send_signal(signal.SIGINT)
+    t0 = time.perf_counter()
+    _, err = child.communicate(timeout=60)
+    assert child.returncode != 0 and "KeyboardInterrupt" in err
+    assert time.perf_counter() - t0 < 5.0  # a scene alone takes ~25 s here
+    assert list(tmp_path.iterdir()) == []  # nothing stored: no wave was done

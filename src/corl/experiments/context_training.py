@@ -186,10 +186,14 @@ def _before(runs: list, task, earlier) -> dict:
             if r.task == task.name and any(_same(r.config.get("context"), c) for c in earlier)}
 
 
+def _end_robots(pool: ProcessPoolExecutor) -> None:
+    """End the pool's processes now, instead of waiting for the scenes they are learning."""
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        process.terminate()
+
+
 def _train_waves(task, spec, seed, contexts, store: Path, progress, skill, robots: int, seconds: float) -> list[dict]:
     from corl.fleet import _start_worker
-    from corl.store import RunStore
-    from corl.store.copy import copy_runs
 
     rows: list = [None] * len(contexts)
     with ExitStack() as stack:
@@ -197,26 +201,39 @@ def _train_waves(task, spec, seed, contexts, store: Path, progress, skill, robot
         pool = stack.enter_context(ProcessPoolExecutor(
             max_workers=robots, mp_context=multiprocessing.get_context("fork"), initializer=_start_worker,
             initargs=(os.getpid(),)))
-        for wave in waves(len(contexts), robots):
-            existing = _stored_runs(store)
-            upto = _before(existing, task, contexts[:wave.start])
-            found = {i: _run_in(existing, contexts[i]) for i in wave}
-            scenes = {i: folder / f"scene-{i}.corl" for i in wave if found[i] is None}
-            futures = {i: pool.submit(_learn_alone, spec, seed, np.asarray(contexts[i], dtype=float).tolist(),
-                                      str(store) if upto else None, upto, skill, str(path), seconds)
-                       for i, path in scenes.items()}
-            for i in wave:  # kept, or continued here while the robots learn the new scenes
-                if found[i] is not None:
-                    rows[i] = _learn(task, spec, seed, contexts[i], source=store, into=store, info=found[i],
-                                     seconds=seconds)
-            for i, future in futures.items():
-                rows[i] = future.result()
-            learned = [path for i, path in scenes.items() if _stored_runs(path)]
-            if learned:
-                with RunStore(store) as db, ExitStack() as sources:
-                    copy_runs(db, [(sources.enter_context(RunStore(path, create=False, readonly=True)), run.id)
-                                   for path in learned for run in _stored_runs(path)])
-            for i in wave:
-                if progress is not None:
-                    progress("train", i + 1, len(contexts), rows[i])
+        try:
+            for wave in waves(len(contexts), robots):
+                _wave(wave, task, spec, seed, contexts, store, skill, seconds, pool, folder, rows)
+                for i in wave:
+                    if progress is not None:
+                        progress("train", i + 1, len(contexts), rows[i])
+        except BaseException:  # Ctrl-C, a store error: the robots' scenes are lost, the waves before are stored
+            _end_robots(pool)
+            raise
     return rows
+
+
+def _wave(wave: range, task, spec, seed, contexts, store: Path, skill, seconds: float, pool, folder: Path,
+          rows: list) -> None:
+    """One wave: its new scenes learned by the pool's robots from the waves before, its unfinished runs
+    continued here meanwhile, then the new runs copied into ``store`` in order; each scene's row put in ``rows``."""
+    from corl.store import RunStore
+    from corl.store.copy import copy_runs
+
+    existing = _stored_runs(store)
+    upto = _before(existing, task, contexts[:wave.start])
+    found = {i: _run_in(existing, contexts[i]) for i in wave}
+    scenes = {i: folder / f"scene-{i}.corl" for i in wave if found[i] is None}
+    futures = {i: pool.submit(_learn_alone, spec, seed, np.asarray(contexts[i], dtype=float).tolist(),
+                              str(store) if upto else None, upto, skill, str(path), seconds)
+               for i, path in scenes.items()}
+    for i in wave:  # kept, or continued here while the robots learn the new scenes
+        if found[i] is not None:
+            rows[i] = _learn(task, spec, seed, contexts[i], source=store, into=store, info=found[i], seconds=seconds)
+    for i, future in futures.items():
+        rows[i] = future.result()
+    learned = [path for path in scenes.values() if _stored_runs(path)]
+    if learned:
+        with RunStore(store) as db, ExitStack() as sources:
+            copy_runs(db, [(sources.enter_context(RunStore(path, create=False, readonly=True)), run.id)
+                           for path in learned for run in _stored_runs(path)])
