@@ -58,7 +58,8 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("fleet", ("corl.fleet",)),  # a stored run's trials on K worker processes or Ray actors (corl run --robots)
     ("experiments.sweep", ("corl.experiments.sweep", "corl.experiments.run_output")),  # ground truth; a run's folder
     ("experiments.studies", ("corl.experiments.synthetic", "corl.experiments.door",
-                                                       "corl.experiments.contexts", "corl.experiments.parallel")),  # Fig. 1, Fig. 3
+                                                       "corl.experiments.contexts", "corl.experiments.context_training",
+                                                       "corl.experiments.parallel")),  # Fig. 1, Fig. 3
     ("experiments.html", ("corl.experiments.html",)),  # `corl report`
     ("serve", ("corl.serve",)),  # `corl serve`: the learner over HTTP, the live dashboard
     ("experiments", ("corl.experiments",)),  # the package, and the old path of corl.methods

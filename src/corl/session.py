@@ -115,7 +115,7 @@ class StoredRun:
     @classmethod
     def new(cls, task: Task, *, task_spec: str, method: str, seed: int,
             corl_overrides: dict | None = None, context=None, learned_from: RunStore | None = None,
-            skill: dict | None = None, robots: int = 1) -> "StoredRun":
+            skill: dict | None = None, robots: int = 1, upto: dict | None = None) -> "StoredRun":
         """A new run of ``method`` on ``task``, in no store yet (:meth:`attach` creates it there).
 
         ``task_spec`` is how the command line named the task; ``corl_overrides`` (e.g.
@@ -126,13 +126,15 @@ class StoredRun:
         ``skill``: settings of the skill it starts from (``{"p_min": 0.9}``, :class:`corl.contexts.Skill`),
         stored with the run (``config["skill"]``) and applied again when it is reopened. ``robots`` K > 1:
         up to K trials out at once (``config["robots"]``; :meth:`try_ask`, ``tell(outcome, index)``).
+        ``upto`` (run id -> told trials, :func:`corl.contexts.snapshot`'s form): learn from only these of
+        ``learned_from``'s runs and trials (``corl bench contexts --robots K``: the waves before); default all.
         A :class:`corl.tasks.noisy.NoisyTask` records its sensors (``config["noise"]``); reopening the
         run takes the task as given, so wrap it in the same sensors again (``corl run --resume`` does).
         """
         from corl.problem import context_of
         from corl.tasks.noisy import NoisyTask
 
-        upto: dict = {}
+        given, upto = upto, {}
         robots = checks.integer("robots", robots, low=1)
         if robots > 1 and context is not None:
             raise InputError("several robots (--robots) learn one scene; a run in a context (--context) has one robot "
@@ -141,7 +143,11 @@ class StoredRun:
             from corl.contexts import context_task, snapshot
 
             context = check_context(task, context)
-            upto = snapshot(learned_from, context_task(task)) if learned_from is not None else {}
+            seen = snapshot(learned_from, context_task(task)) if learned_from is not None else {}
+            upto = seen if given is None else {str(key): int(n) for key, n in given.items()}
+            if any(seen.get(key, -1) < n for key, n in upto.items()):
+                raise InputError(f"upto {upto} names runs or trials that {getattr(learned_from, 'path', None)} "
+                                 f"does not hold ({seen}); take it from the store learned from")
             learner = _build_in_context(task, method, seed, corl_overrides, context, learned_from, upto, skill)
         elif skill:
             raise InputError("skill settings (--p-min) apply to a run in a context: add --context, or drop them")

@@ -194,6 +194,9 @@ def bench_contexts(
     truth: str = typer.Option("auto", help="each test scene's best return: auto (the task's best_return() when it "
                               "has one, else grid:64), task, or grid:N (a sweep of N thetas from its demonstration)"),
     p_min: Optional[str] = P_MIN_OPTION,
+    robots: int = typer.Option(1, help="K robots: the training contexts K at a time, each in its own process, each "
+                               "scene learning from the earlier waves' runs (1: in turn, each from all before it)"),
+    trial_seconds: float = typer.Option(0.0, help="robot time each training trial also takes, in seconds"),
     quiet: bool = QUIET, json_out: bool = JSON_OUT, log: bool = LOG,
 ) -> None:
     """One skill, many scenes: the skill learned on TRAIN contexts against learning each test context
@@ -201,6 +204,7 @@ def bench_contexts(
     import time
 
     from corl.errors import CorlError
+    from corl.experiments.context_training import check_robots
     from corl.experiments.contexts import bench_contexts as study, contexts_table, parse_truth, plot_contexts
 
     check_args(task=("TASK", task), seed=("--seed", seed), jobs=("--jobs", jobs), folder=("--out", out))
@@ -209,6 +213,7 @@ def bench_contexts(
             fail(f"{flag} must be an integer in [{low}, {high}], got {value}")
     try:
         parse_truth(truth)
+        check_robots(robots, trial_seconds)
     except CorlError as exc:
         fail(str(exc))
     skill_kw = skill_settings(p_min)  # every study learns in scenes
@@ -231,7 +236,7 @@ def bench_contexts(
 
         try:
             payload = study(task, train_count=train, test_count=test, seed=seed, out=out, budget=budget, jobs=jobs,
-                            progress=tick, truth=truth, skill=skill_kw)
+                            progress=tick, truth=truth, skill=skill_kw, robots=robots, trial_seconds=trial_seconds)
         except CorlError as exc:
             fail(str(exc))
     payload["wall_seconds"] = time.perf_counter() - t0
@@ -240,7 +245,8 @@ def bench_contexts(
     if json_out:
         return print_json({**payload, "file": str(out / "contexts.json"), "figure": str(figure)})
     typer.echo(contexts_table(payload))
-    typer.echo(f"\n{train} training and {test} test contexts in {payload['wall_seconds']:.1f} s; wrote "
+    typer.echo(f"\n{train} training and {test} test contexts in {payload['wall_seconds']:.1f} s (training "
+               f"{payload['train_seconds']:.1f} s, {robots} robot{'' if robots == 1 else 's'}); wrote "
                f"{out / 'contexts.json'}, {figure} and the skill's store {out / 'train.corl'}")
 
 

@@ -1,8 +1,9 @@
 """``corl bench contexts``: one skill across scenes against learning each scene from scratch.
 
 Train on N contexts (the demonstration's own, then N - 1 spread over the box by a Latin
-hypercube), every
-run in one store (:mod:`corl.contexts`), in turn, each learning from the runs before it. Then, in
+hypercube), every run in one store (:mod:`corl.contexts`), in turn, each learning from the runs
+before it, or with K robots in waves of K, each scene from the waves before it
+(:mod:`corl.experiments.context_training`). Then, in
 each of M held-out test contexts drawn from the box, side by side:
 
 * **contextual**: the skill's policy, then learning in that scene (:class:`ContextualCORL`);
@@ -23,13 +24,13 @@ parallel workers, each reading the training store.
 from __future__ import annotations
 
 import time
-from contextlib import nullcontext
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from corl.errors import DemonstrationFailedError, InputError
+from corl.experiments.context_training import _task, check_robots, train
 
 __all__ = ["METHODS", "TARGET_FRACTION", "draw_contexts", "train", "evaluate_context", "summarise", "bench_contexts",
            "contexts_table", "plot_contexts"]
@@ -46,86 +47,6 @@ def draw_contexts(bounds, count: int, rng: np.random.Generator, *, spread: bool 
         return bounds.from_unit(rng.random((count, bounds.dim)))
     u = (np.argsort(rng.random((bounds.dim, count)), axis=1).T + rng.random((count, bounds.dim))) / max(count, 1)
     return bounds.from_unit(u)
-
-
-def _task(spec: str, seed: int):
-    from corl.experiments.sweep import TaskSpec
-
-    return TaskSpec(spec, seed)()
-
-
-def _stored_runs(store: Path) -> list:
-    """The runs of ``store`` in the order they were created; none for a missing or empty file (a
-    creation that was killed before its first commit)."""
-    from corl.store import RunStore
-    from corl.store.records import EmptyStoreError
-
-    if not store.exists():
-        return []
-    try:
-        with RunStore(store, create=False, readonly=True) as ro:
-            return ro.runs()
-    except EmptyStoreError:
-        return []
-
-
-def _row(c, history, best, start: str, seconds: float) -> dict:
-    return {"context": [float(v) for v in c], "trials": len(history),
-            "failures": sum(not o.success for _, o in history),
-            "best_return": None if best is None else float(best.return_), "start": start or "demonstration",
-            "seconds": seconds}
-
-
-def _same(a, b) -> bool:
-    return a is not None and np.shape(a) == np.shape(b) and np.allclose(a, b, rtol=0.0, atol=1e-12)
-
-
-def train(spec: str, seed: int, contexts: np.ndarray, store: Path, progress=None, skill: dict | None = None) -> list[dict]:
-    """Learn in each context in turn, every run in ``store``, each from the runs before it; one
-    summary per run. Resumable: a context's run is found by its context; a finished one is kept, an
-    unfinished one continued exactly (:meth:`StoredRun.open`), a missing one started. A scene that
-    cannot be learned (its demonstration or its start fails, or the task raises there) is named in
-    its row (``skipped``) and the study goes on without it."""
-    from corl.errors import MissingExtraError
-    from corl.session import StoredRun
-    from corl.store import RunStatus, RunStore, StoreError
-
-    task = _task(spec, seed)
-    foreign = [info for info in _stored_runs(store)
-               if not any(_same(info.config.get("context"), c) for c in contexts)]
-    if foreign:
-        raise InputError(f"run {foreign[0].id} of {store} was learned in context {foreign[0].config.get('context')}, "
-                         "not one of this study's: this store belongs to another study; choose another --out")
-    rows = []
-    for i, c in enumerate(contexts):
-        t0 = time.perf_counter()
-        existing = _stored_runs(store)
-        info = next((r for r in existing if _same(r.config.get("context"), c)), None)
-        try:
-            with RunStore(store, create=False, readonly=True) if existing else nullcontext() as ro:
-                if info is not None:
-                    run = StoredRun.open(ro, task, info.id)
-                else:
-                    run = StoredRun.new(task, task_spec=spec, method="CORL", seed=seed, context=c, learned_from=ro,
-                                        skill=skill if ro is not None else None)
-            if info is None or info.status is not RunStatus.FINISHED:
-                with RunStore(store) as db:
-                    run.attach(db)
-                    run.run(task.with_context(c))
-        except (StoreError, MissingExtraError):
-            raise  # the study's own files or installation, not the scene
-        except Exception as exc:  # a user's family: one scene that cannot be learned is skipped (named)
-            reason = f"{type(exc).__name__}: {exc}".splitlines()[0]
-            rows.append({"context": [float(v) for v in c], "skipped": reason, "seconds": time.perf_counter() - t0})
-        else:
-            rows.append(_row(c, run.history, run.best, getattr(run.learner, "start_kind", ""),
-                             time.perf_counter() - t0))
-        if progress is not None:
-            progress("train", i + 1, len(contexts), rows[-1])
-    if all("skipped" in r for r in rows):
-        raise InputError(f"no training scene could be learned; the first: context {rows[0]['context']}: "
-                         f"{rows[0]['skipped']}")
-    return rows
 
 
 def parse_truth(text: str) -> tuple[str, int]:
@@ -330,19 +251,23 @@ class _Job:
 
 
 def bench_contexts(spec: str, *, train_count: int, test_count: int, seed: int, out: Path, budget: int = 40,
-                   jobs: int = 1, progress=None, truth: str = "auto", skill: dict | None = None) -> dict:
+                   jobs: int = 1, progress=None, truth: str = "auto", skill: dict | None = None, robots: int = 1,
+                   trial_seconds: float = 0.0) -> dict:
     """The whole study; writes ``out/train.corl`` (the skill) and returns the contexts.json payload.
 
     A ``train.corl`` already in ``out`` from the same study (task, seed, training contexts) is
     reused: its finished runs are kept and an unfinished one is resumed (:func:`train`).
     ``truth``: how each test scene's best return is found (:func:`parse_truth`); ``skill``: the
-    skill's settings (:class:`corl.contexts.Skill` keywords, e.g. ``{"p_min": 0.9}``), in training and test."""
+    skill's settings (:class:`corl.contexts.Skill` keywords, e.g. ``{"p_min": 0.9}``), in training and test.
+    ``robots`` K: the training scenes in waves of K robots; ``trial_seconds``: each training trial
+    also takes that long (:func:`corl.experiments.context_training.train`; ``train_seconds``: its wall time)."""
     from joblib import Parallel, delayed
 
     from corl.contexts import context_task
     from corl.versions import library_versions
 
     how = parse_truth(truth)
+    robots, trial_seconds = check_robots(robots, trial_seconds)
     task = context_task(_task(spec, seed))
     if how[0] == "task" and not callable(getattr(task, "best_return", None)):
         raise InputError(f"--truth task: task {spec} has no best_return() member; use --truth grid:N")
@@ -353,7 +278,7 @@ def bench_contexts(spec: str, *, train_count: int, test_count: int, seed: int, o
     tests = draw_contexts(box, test_count, np.random.default_rng([seed, 22, 1]))
     store = Path(out) / "train.corl"
     t0 = time.perf_counter()
-    trained = train(spec, seed, contexts, store, progress, skill)
+    trained = train(spec, seed, contexts, store, progress, skill, robots=robots, trial_seconds=trial_seconds)
     t_train = time.perf_counter() - t0
     job = _Job(spec, seed, str(store), budget, how, dict(skill) if skill else None)
     per_context = []
@@ -366,7 +291,8 @@ def bench_contexts(spec: str, *, train_count: int, test_count: int, seed: int, o
             "context_labels": list(getattr(task, "context_labels", None) or []) or None, "train": trained,
             "test": per_context, "methods": summarise(per_context), "truth": truth, "skill": dict(skill or {}),
             "skipped": {"train": sum("skipped" in r for r in trained), "test": sum("skipped" in r for r in per_context)},
-            "budget": budget, "target_fraction": TARGET_FRACTION, "train_seconds": t_train,
+            "budget": budget, "target_fraction": TARGET_FRACTION, "robots": robots, "trial_seconds": trial_seconds,
+            "train_seconds": t_train,
             "wall_seconds": time.perf_counter() - t0, "versions": library_versions()}
 
 
