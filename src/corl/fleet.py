@@ -14,7 +14,8 @@ rolling out the trials sent to it. ``backend="dask"``: the trials as Dask tasks 
 K single-threaded worker processes; each worker loads the task from its spec and seed once (a task
 without a spec is scattered to every worker once). With ``address`` both join a running cluster
 instead (``ray start --head`` / ``dask scheduler``), whose workers must have corl and the task's
-code installed; at most K trials are out whatever its size.
+code installed (Dask workers with one thread each: a worker's threads would share its task); at most
+K trials are out whatever its size.
 """
 
 from __future__ import annotations
@@ -167,7 +168,8 @@ def run_fleet(session, task: Task, *, robots: int, backend: str = "local", trial
               seed: int = 0, address: str | None = None) -> int:
     """Roll out ``session``'s trials (a :class:`corl.session.StoredRun`) on ``robots`` worker processes
     (or Ray actors or Dask workers, which load ``task_spec`` with ``seed``; on the cluster at ``address``
-    if given) until its learner is done; returns the number of trials told. A rollout that raises is a :class:`RolloutError` (its trial, and those still out,
+    if given) until its learner is done; returns the number of trials told. A rollout that raises is a
+    :class:`RolloutError` (its trial, and those still out,
     stay pending in the store: resume goes on)."""
     global _TASK
     robots = checks.integer("robots", robots, low=1)
