@@ -92,9 +92,16 @@ class _RayRobot:
         return outcome
 
 
-class _RayPool:
-    """K Ray actors behind ``submit(fn, w, seconds)`` -> a concurrent.futures.Future (a thread per robot
-    waits on its actor). ``fn`` is ignored: the actor rolls out its own task."""
+class _ThreadedPool:
+    """``submit(fn, w, seconds)`` -> a concurrent.futures.Future: a thread per robot waits on the cluster's
+    own future (``_call``). ``fn`` is ignored: the cluster's workers roll out their own task."""
+
+    def submit(self, fn, w, seconds):
+        return self.threads.submit(self._call, w, seconds)
+
+
+class _RayPool(_ThreadedPool):
+    """K Ray actors, each with the task loaded once; a robot's thread waits on a free actor's rollout."""
 
     def __init__(self, stack: ExitStack, task: Task, robots: int, task_spec: str | None, seed: int,
                  address: str | None = None) -> None:
@@ -118,9 +125,6 @@ class _RayPool:
         finally:
             self.free.put(robot)
 
-    def submit(self, fn, w, seconds):
-        return self.threads.submit(self._call, w, seconds)
-
 
 _LOADED: dict = {}  # on a Dask worker: the tasks it loaded, by (spec, seed)
 
@@ -139,9 +143,8 @@ def _dask_rollout(task_spec, seed, task, w, seconds: float):
     return outcome
 
 
-class _DaskPool:
-    """Dask workers behind ``submit(fn, w, seconds)`` -> a concurrent.futures.Future (a thread per robot
-    waits on its Dask future). ``fn`` is ignored: the worker rolls out the task of the spec."""
+class _DaskPool(_ThreadedPool):
+    """Dask workers, each loading the task once (:func:`_dask_rollout`); a robot's thread waits on its Dask future."""
 
     def __init__(self, stack: ExitStack, task: Task, robots: int, task_spec: str | None, seed: int,
                  address: str | None = None) -> None:
@@ -158,9 +161,6 @@ class _DaskPool:
 
     def _call(self, w, seconds):
         return self.client.submit(_dask_rollout, self.spec, self.seed, self.task, w, seconds, pure=False).result()
-
-    def submit(self, fn, w, seconds):
-        return self.threads.submit(self._call, w, seconds)
 
 
 def run_fleet(session, task: Task, *, robots: int, backend: str = "local", trial_seconds: float = 0.0,
